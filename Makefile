@@ -1,0 +1,61 @@
+# Two commands from nothing:  `make demo`  and  `make test`.
+# `make setup` (run by both) is idempotent: apt packages, .venv, editable install.
+
+SHELL        := /bin/bash
+VENV         := .venv
+PY           := $(VENV)/bin/python
+SYSTEM_PY    := /usr/bin/python3
+APT_PACKAGES := python3-dolfinx python3-numba python3-mpi4py python3-petsc4py \
+                python3-gmsh python3-meshio python3-h5py python3-matplotlib \
+                python3-scipy python3-pytest python3-venv python3-pip openmpi-bin make
+PIP_EXTRAS   := pydantic>=2,<3 tomli-w>=1.0
+STAMP        := $(VENV)/.setup-done
+# OpenMPI refuses to run as root and to oversubscribe 2 cores unless told; these
+# are also appended to .venv/bin/activate, so `mpirun -n 4 cosim run CASE` works.
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+export OMPI_MCA_rmaps_base_oversubscribe := 1
+MPIRUN       := mpirun --oversubscribe
+DEMO_CASE    ?= runs/demo_dem_settling.toml
+
+.PHONY: setup demo test test-slow bench bench-peers clean
+
+setup: apt-packages $(STAMP)
+
+apt-packages:
+	@missing=""; for p in $(APT_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "setup: installing Debian packages:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
+	  $$SUDO apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+
+$(STAMP): pyproject.toml Makefile
+	@test -x $(PY) || $(SYSTEM_PY) -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check $(foreach p,$(PIP_EXTRAS),'$(p)')
+	$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@grep -q OMPI_ALLOW_RUN_AS_ROOT $(VENV)/bin/activate || printf '%s\n' \
+	  'export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1' \
+	  >> $(VENV)/bin/activate
+	$(PY) -c "import numpy, numba, mpi4py, dolfinx; assert numpy.__file__.startswith('/usr/lib/python3/'), 'a second numpy shadows Debian numpy: ' + numpy.__file__"
+	@touch $(STAMP)
+
+demo: setup
+	$(VENV)/bin/cosim run $(DEMO_CASE)
+
+test: setup
+	$(PY) -m pytest -m "not slow and not mpi" -q
+	$(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q -p no:cacheprovider
+
+test-slow: setup
+	$(PY) -m pytest -m slow -q
+
+bench: setup
+	$(PY) benchmarks/dem_throughput.py
+	$(PY) benchmarks/fe_throughput.py
+
+clean:
+	rm -rf $(VENV) runs/out .pytest_cache

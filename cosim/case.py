@@ -1,0 +1,267 @@
+"""Case files: the typed TOML schema, ``--set`` overrides and validation.
+
+One TOML file describes one complete run. Every field below has a type, a unit
+(in its description) and an allowed range; unknown keys are errors. Validation
+happens in three passes, all before any computation:
+
+1. TOML syntax;
+2. types, ranges and unknown keys (pydantic models, ``extra="forbid"``);
+3. cross-field consistency and referenced files (``_check_consistency``).
+
+Each failure raises :class:`cosim.errors.CaseError` naming the file, the dotted
+key, the offending value and what is allowed. ``cosim schema`` prints the whole
+schema with units.
+"""
+from __future__ import annotations
+
+import copy
+import tomllib
+from pathlib import Path
+from typing import Annotated, Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from cosim.errors import CaseError
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+# --------------------------------------------------------------------------- case
+class CaseInfo(_Section):
+    name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
+    kind: Literal["dem"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls)")
+    seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
+
+
+class TimeSection(_Section):
+    duration: Optional[float] = Field(default=None, gt=0, description="simulated time [s] (give duration or steps)")
+    steps: Optional[int] = Field(default=None, gt=0, description="number of time steps [-] (give duration or steps)")
+    dt: Optional[float] = Field(default=None, gt=0, description="time step [s]; default safety_factor x critical step")
+    safety_factor: float = Field(default=0.3, gt=0, le=0.5, description="fraction of the critical time step [-]")
+
+
+class OutputSection(_Section):
+    interval: float = Field(default=0.0, ge=0, description="time between CSV rows and VTK frames [s]; 0 = 20 frames per run")
+    vtk: bool = Field(default=True, description="write particles/walls as VTU + PVD for ParaView")
+    checkpoint_interval: float = Field(default=600.0, gt=0, description="wall-clock time between checkpoints [s]")
+    progress_interval: float = Field(default=2.0, gt=0, description="wall-clock time between progress lines [s]")
+
+
+# --------------------------------------------------------------------------- dem
+class DemMaterial(_Section):
+    name: str = Field(min_length=1, description="material name, referenced by particles and walls")
+    density: float = Field(gt=0, description="solid density [kg/m^3]")
+    young: float = Field(gt=0, description="Young's modulus E; linear law k_n = 2 E r* (DESIGN §2) [Pa]")
+    poisson: float = Field(default=0.25, ge=0, lt=0.5, description="Poisson's ratio (Hertz-Mindlin) [-]")
+    friction: float = Field(default=0.5, ge=0, description="Coulomb friction coefficient mu [-]")
+    restitution: float = Field(default=0.5, gt=0, le=1, description="normal restitution coefficient e [-]")
+    stiffness_ratio: float = Field(default=1.5, gt=0, description="kappa = k_n / k_t [-]")
+    rolling_stiffness: float = Field(default=0.0, ge=0, description="beta_r: k_r = beta_r k_t rbar^2 [-]")
+    rolling_friction: float = Field(default=0.0, ge=0, description="eta_r: |M_r| <= eta_r f_n rbar [-]")
+
+
+class DemParticles(_Section):
+    source: Literal["cloud", "file"] = Field(description="'cloud': random non-overlapping spheres in a box; 'file': a packing file")
+    file: Optional[str] = Field(default=None, description="packing (.npz, or text 'x y z r' per line), relative to the case file")
+    count: Optional[int] = Field(default=None, gt=0, description="number of spheres for source='cloud' [-]")
+    box: Optional[list[Vec3]] = Field(default=None, min_length=2, max_length=2, description="[[xmin,ymin,zmin],[xmax,ymax,zmax]] of the cloud [m]")
+    radius: Optional[list[float]] = Field(default=None, min_length=2, max_length=2, description="[r_min, r_max], uniform radii for source='cloud' [m]")
+    material: str = Field(description="material name of these spheres")
+
+
+class DemWall(_Section):
+    type: Literal["plane", "facets"] = Field(description="'plane': infinite plane; 'facets': triangle mesh file")
+    point: Optional[Vec3] = Field(default=None, description="a point on the plane [m]")
+    normal: Optional[Vec3] = Field(default=None, description="plane normal, pointing into the particles [-]")
+    file: Optional[str] = Field(default=None, description="triangle mesh (.stl or gmsh .msh) for type='facets', relative to the case file")
+    velocity: Vec3 = Field(default=[0.0, 0.0, 0.0], description="prescribed translation velocity [m/s]")
+    material: str = Field(description="material name of the wall")
+
+
+class DemSection(_Section):
+    contact_law: Literal["linear", "hertz"] = Field(default="linear", description="'linear' (Cundall-Strack) or 'hertz' (Hertz-Mindlin)")
+    gravity: Vec3 = Field(default=[0.0, 0.0, -9.81], description="gravitational acceleration [m/s^2]")
+    local_damping: float = Field(default=0.0, ge=0, lt=1, description="non-viscous background damping alpha_b [-]")
+    viscous_damping: float = Field(default=0.0, ge=0, description="viscous background damping alpha_v [1/s]")
+    materials: list[DemMaterial] = Field(min_length=1, description="[[dem.materials]] tables")
+    particles: DemParticles
+    walls: list[DemWall] = Field(default_factory=list, description="[[dem.walls]] tables")
+
+
+class Case(_Section):
+    case: CaseInfo
+    time: TimeSection
+    output: OutputSection = Field(default_factory=OutputSection)
+    dem: Optional[DemSection] = None
+
+
+# --------------------------------------------------------------------------- loading
+def load_case(path, overrides=()):
+    """Read, override and validate a case file; return ``(Case, resolved dict)``.
+
+    ``overrides`` are ``"section.key=value"`` strings; ``value`` is parsed as a
+    TOML value (``1e-3``, ``true``, ``[0, 0, -9.81]``) or else taken as a string.
+    Relative file paths in the case are resolved against the case file's folder.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CaseError(path, "<file>", str(path), "the case file must exist and be a readable TOML file")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(path, "<syntax>", str(exc), "the file must be valid TOML") from None
+    raw = apply_overrides(path, raw, overrides)
+    try:
+        case = Case.model_validate(raw)
+    except ValidationError as exc:
+        raise _case_error_from_pydantic(path, exc) from None
+    _check_consistency(path, case)
+    return case, case.model_dump()
+
+
+def apply_overrides(path, raw, overrides):
+    """Return a copy of ``raw`` with ``--set a.b.c=value`` overrides applied."""
+    raw = copy.deepcopy(raw)
+    for item in overrides:
+        if "=" not in item:
+            raise CaseError(path, item, item, "--set needs the form section.key=value")
+        key, text = item.split("=", 1)
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text
+        node = raw
+        parts = key.strip().split(".")
+        for part in parts[:-1]:
+            nxt = node.get(part) if isinstance(node, dict) else None
+            if nxt is None:
+                nxt = node.setdefault(part, {}) if isinstance(node, dict) else None
+            if not isinstance(nxt, dict):
+                raise CaseError(path, key, text, "--set can only override keys of TOML tables (not of arrays of tables)")
+            node = nxt
+        node[parts[-1]] = value
+    return raw
+
+
+def _dotted(loc):
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _case_error_from_pydantic(path, exc):
+    err = exc.errors()[0]
+    loc = [p for p in err["loc"] if not (isinstance(p, str) and ("[" in p or p.startswith("function-")))]
+    key = _dotted(loc)
+    msg = err["msg"]
+    if err["type"] == "extra_forbidden":
+        parent = _model_at(loc[:-1])
+        allowed = ", ".join(parent.model_fields) if parent else "see `cosim schema`"
+        return CaseError(path, key, err.get("input"), f"unknown key; allowed keys here: {allowed}")
+    if err["type"] == "missing":
+        return CaseError(path, key, None, "required key is missing")
+    field = _field_at(loc)
+    desc = f" ({field.description})" if field is not None and field.description else ""
+    return CaseError(path, key, err.get("input"), msg + desc)
+
+
+def _model_at(loc):
+    model = Case
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        field = model.model_fields.get(part)
+        if field is None:
+            return None
+        model = _inner_model(field.annotation)
+        if model is None:
+            return None
+    return model
+
+
+def _field_at(loc):
+    parent = _model_at([p for p in loc[:-1]])
+    names = [p for p in loc if isinstance(p, str)]
+    if parent is None or not names:
+        return None
+    return parent.model_fields.get(names[-1])
+
+
+def _inner_model(annotation):
+    """The BaseModel inside Optional[...] / list[...], if any."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in getattr(annotation, "__args__", ()):
+        inner = _inner_model(arg)
+        if inner is not None:
+            return inner
+    return None
+
+
+def resolve_path(case_file, relative):
+    """A path in a case file, relative to the case file's folder."""
+    p = Path(relative)
+    return p if p.is_absolute() else (Path(case_file).parent / p).resolve()
+
+
+def _check_consistency(path, case):
+    """Cross-field rules pydantic's per-field ranges cannot express."""
+    t = case.time
+    if (t.duration is None) == (t.steps is None):
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps), "give exactly one of duration [s] or steps")
+    if case.output.interval and t.duration and case.output.interval > t.duration:
+        raise CaseError(path, "output.interval", case.output.interval, f"must not exceed time.duration = {t.duration} s")
+    if case.case.kind == "dem":
+        if case.dem is None:
+            raise CaseError(path, "dem", None, "a case of kind 'dem' needs a [dem] section")
+        _check_dem(path, case.dem)
+
+
+def _check_dem(path, dem):
+    names = [m.name for m in dem.materials]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise CaseError(path, f"dem.materials[{i}].name", name, "material names must be unique")
+    p = dem.particles
+    if p.material not in names:
+        raise CaseError(path, "dem.particles.material", p.material, f"must be one of the materials: {names}")
+    if p.source == "file":
+        if p.file is None:
+            raise CaseError(path, "dem.particles.file", None, "source = 'file' needs a packing file (.npz or .txt)")
+        f = resolve_path(path, p.file)
+        if not f.is_file():
+            raise CaseError(path, "dem.particles.file", p.file, f"file not found (looked for {f})")
+        if f.suffix not in (".npz", ".txt", ".dat", ".dump"):
+            raise CaseError(path, "dem.particles.file", p.file, "allowed formats: .npz, .txt/.dat ('x y z r'), .dump (LIGGGHTS 'id radius x y z')")
+    else:
+        for key in ("count", "box", "radius"):
+            if getattr(p, key) is None:
+                raise CaseError(path, f"dem.particles.{key}", None, "source = 'cloud' needs count, box and radius")
+        lo, hi = p.box
+        if any(h <= l for l, h in zip(lo, hi)):
+            raise CaseError(path, "dem.particles.box", p.box, "each max corner coordinate must exceed the min corner")
+        rmin, rmax = p.radius
+        if not 0 < rmin <= rmax:
+            raise CaseError(path, "dem.particles.radius", p.radius, "need 0 < r_min <= r_max [m]")
+        if 2 * rmax >= min(h - l for l, h in zip(lo, hi)):
+            raise CaseError(path, "dem.particles.radius", p.radius, "the largest diameter must be smaller than the box")
+    for i, w in enumerate(dem.walls):
+        key = f"dem.walls[{i}]"
+        if w.material not in names:
+            raise CaseError(path, f"{key}.material", w.material, f"must be one of the materials: {names}")
+        if w.type == "plane":
+            if w.point is None or w.normal is None:
+                raise CaseError(path, f"{key}.point/normal", (w.point, w.normal), "a plane wall needs point and normal")
+            if sum(c * c for c in w.normal) == 0:
+                raise CaseError(path, f"{key}.normal", w.normal, "the normal must be a non-zero vector")
+        else:
+            if w.file is None:
+                raise CaseError(path, f"{key}.file", None, "a facets wall needs a mesh file (.stl or .msh)")
+            f = resolve_path(path, w.file)
+            if not f.is_file():
+                raise CaseError(path, f"{key}.file", w.file, f"file not found (looked for {f})")

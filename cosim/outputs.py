@@ -1,0 +1,131 @@
+"""Run outputs: provenance (resolved case, versions, MPI, threads, seed), CSV
+time series written row by row, and the progress line.
+
+Everything is written so that a crash mid-run leaves the files written so far
+intact: CSV rows are flushed as they are produced, metadata and checkpoints are
+written to a temporary name and renamed (atomic on POSIX).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import tomli_w
+
+
+def mpi_comm():
+    from mpi4py import MPI
+    return MPI.COMM_WORLD
+
+
+def is_root():
+    return mpi_comm().rank == 0
+
+
+def say(*args, **kwargs):
+    """print() on MPI rank 0 only."""
+    if is_root():
+        print(*args, **kwargs, flush=True)
+
+
+def versions():
+    """Versions of the stack a run depends on (``cosim info``)."""
+    out = {"python": platform.python_version()}
+    for module in ("cosim", "numpy", "numba", "mpi4py", "petsc4py", "dolfinx", "basix", "ffcx", "ufl", "gmsh", "meshio", "pydantic"):
+        try:
+            mod = __import__(module)
+            out[module] = getattr(mod, "__version__", None) or _dist_version(module)
+        except Exception as exc:  # a missing optional piece is reported, not fatal
+            out[module] = f"unavailable ({type(exc).__name__})"
+    return out
+
+
+def _dist_version(name):
+    from importlib.metadata import version
+    return version(name)
+
+
+def runtime():
+    """MPI size and Numba threads of this process."""
+    import numba
+    return {"mpi_size": mpi_comm().size, "numba_threads": numba.get_num_threads(),
+            "numba_threading_layer": numba.config.THREADING_LAYER, "host": platform.node()}
+
+
+def atomic_write_text(path, text):
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_run_metadata(out_dir, case_path, resolved, seed):
+    """Write ``case.resolved.toml`` (re-runnable) and ``run_info.json`` next to the outputs."""
+    if not is_root():
+        return
+    out_dir = Path(out_dir)
+    clean = _drop_none(resolved)
+    atomic_write_text(out_dir / "case.resolved.toml", tomli_w.dumps(clean))
+    info = {"case_file": str(Path(case_path).resolve()), "command": sys.argv,
+            "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "seed": seed, "versions": versions(), **runtime()}
+    atomic_write_text(out_dir / "run_info.json", json.dumps(info, indent=2))
+
+
+def _drop_none(obj):
+    if isinstance(obj, dict):
+        return {k: _drop_none(v) for k, v in obj.items() if v is not None}
+    if isinstance(obj, list):
+        return [_drop_none(v) for v in obj]
+    return obj
+
+
+class CsvSeries:
+    """A CSV time series, one flushed row at a time; on resume keeps rows up to ``t_resume``."""
+
+    def __init__(self, path, columns, resume_time=None):
+        self.path, self.columns = Path(path), list(columns)
+        kept = []
+        if resume_time is not None and self.path.exists():
+            with open(self.path) as f:
+                kept = [r for r in csv.DictReader(f) if float(r[self.columns[0]]) <= resume_time * (1 + 1e-12)]
+        self._file = open(self.path, "w", newline="")
+        self._writer = csv.writer(self._file)
+        self._writer.writerow(self.columns)
+        for r in kept:
+            self._writer.writerow([r[c] for c in self.columns])
+        self._file.flush()
+
+    def append(self, row):
+        self._writer.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
+        self._file.flush()
+
+    def close(self):
+        self._file.close()
+
+
+class ProgressLine:
+    """``step 1200/5000 (24%)  t=1.20e-03 s  3.4e+03 steps/s  ETA 0:01:10`` every few seconds (rank 0)."""
+
+    def __init__(self, label, total_steps, interval_s=2.0, first_step=0):
+        self.label, self.total, self.interval = label, total_steps, interval_s
+        self.t0 = self.last = time.perf_counter()
+        self.first = first_step
+
+    def update(self, step, sim_time, force=False):
+        now = time.perf_counter()
+        if not force and now - self.last < self.interval:
+            return
+        self.last = now
+        done = step - self.first
+        rate = done / max(now - self.t0, 1e-9)
+        eta = (self.total - step) / rate if rate > 0 else float("inf")
+        eta_s = time.strftime("%H:%M:%S", time.gmtime(eta)) if eta != float("inf") else "--:--:--"
+        say(f"[{self.label}] step {step}/{self.total} ({100.0 * step / self.total:5.1f}%)  "
+            f"t={sim_time:.4e} s  {rate:.3e} steps/s  ETA {eta_s}")

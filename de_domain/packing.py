@@ -1,0 +1,179 @@
+"""Specimen building blocks: sieve-curve size distributions, random non-overlapping
+clouds, and packing files (DESIGN.md §3).
+
+Packing files: ``.npz`` (arrays ``positions`` (n,3), ``radii`` (n,), optional
+metadata), plain text ``x y z r`` per line (as YADE ``ymport.text``, LIGGGHTS
+``read_data``-style scripts and ESyS-Particle exchange them), and LIGGGHTS dumps
+whose ``ITEM: ATOMS`` header names ``radius x y z``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SieveCurve:
+    """Cumulative mass fraction passing (``passing``) at sieve diameters (``diameters``, m).
+
+    Mass is taken as uniformly distributed in d inside each sieve interval, so the
+    number density there is ∝ d⁻³ and the sampled mass fractions reproduce the curve.
+    """
+
+    diameters: np.ndarray
+    passing: np.ndarray
+
+    def __post_init__(self):
+        d, f = np.asarray(self.diameters, float), np.asarray(self.passing, float)
+        if d.ndim != 1 or d.shape != f.shape or len(d) < 2:
+            raise ValueError("a sieve curve needs >= 2 diameters and as many passing fractions")
+        if np.any(np.diff(d) <= 0) or d[0] <= 0:
+            raise ValueError(f"sieve diameters must be positive and increasing, got {d}")
+        if np.any(np.diff(f) < 0) or f[0] < 0 or abs(f[-1] - 1.0) > 1e-9:
+            raise ValueError(f"passing fractions must be non-decreasing from >= 0 to 1, got {f}")
+        object.__setattr__(self, "diameters", d)
+        object.__setattr__(self, "passing", f)
+
+    def scaled(self, factor):
+        """The same curve with every diameter multiplied by ``factor`` (thesis: 4)."""
+        return SieveCurve(self.diameters * factor, self.passing)
+
+    def truncated(self, d_min):
+        """Drop the fines below ``d_min`` and renormalise the remaining mass to 1."""
+        d, f = self.diameters, self.passing
+        if not d[0] <= d_min < d[-1]:
+            raise ValueError(f"truncation diameter {d_min} outside the curve [{d[0]}, {d[-1]}]")
+        f_cut = np.interp(d_min, d, f)
+        keep = d > d_min
+        d_new = np.concatenate([[d_min], d[keep]])
+        f_new = (np.concatenate([[f_cut], f[keep]]) - f_cut) / (1.0 - f_cut)
+        return SieveCurve(d_new, f_new)
+
+    def sample_diameters(self, count, rng):
+        """Draw ``count`` diameters whose mass distribution follows the curve."""
+        a, b = self.diameters[:-1], self.diameters[1:]
+        mass_fraction = np.diff(self.passing)
+        # number per unit mass in [a, b] with uniform mass density in d: ∫ d⁻³ dd /(b − a)
+        number_weight = mass_fraction * 0.5 * (a ** -2 - b ** -2) / (b - a)
+        prob = number_weight / number_weight.sum()
+        k = rng.choice(len(prob), size=count, p=prob)
+        u = rng.random(count)
+        # inverse CDF of the pdf ∝ d⁻³ on [a, b]
+        return (a[k] ** -2 - u * (a[k] ** -2 - b[k] ** -2)) ** -0.5
+
+    def mass_passing(self, diameters):
+        """Mass fraction of ``diameters`` (spheres) finer than each sieve size."""
+        d = np.sort(np.asarray(diameters))
+        mass = np.cumsum(d ** 3)
+        return np.interp(self.diameters, d, mass / mass[-1], left=0.0, right=1.0)
+
+
+#: The sand of the thesis, App. D.1 (DESIGN.md §3), in metres.
+THESIS_SAND = SieveCurve(
+    np.array([0.14, 0.15, 0.3, 0.6, 1.18, 2.36, 4.75, 5.0]) * 1e-3,
+    np.array([0.0, 0.0207, 0.0717, 0.2317, 0.647, 0.8803, 0.9899, 1.0]),
+)
+SIEVE_PRESETS = {"thesis_sand": THESIS_SAND}
+
+
+def random_cloud(radii, box_min, box_max, seed, max_attempts=200):
+    """Place spheres of the given radii at random, without overlap, inside a box.
+
+    Spheres are inserted largest first; each gets up to ``max_attempts`` random
+    positions, checked against its neighbours in a cell grid. Returns
+    ``(positions, radii)`` of the spheres placed (all of them, or an error if the
+    box is too small for the requested count).
+    """
+    radii = np.sort(np.asarray(radii, float))[::-1].copy()
+    lo, hi = np.asarray(box_min, float), np.asarray(box_max, float)
+    if np.any(hi - lo <= 2 * radii[0]):
+        raise ValueError("the box is smaller than the largest sphere")
+    rng = np.random.default_rng(seed)
+    trials = rng.random((len(radii), max_attempts, 3))
+    pos, placed = _insert_spheres(radii, lo, hi, trials)
+    if placed < len(radii):
+        solid = 4 / 3 * np.pi * np.sum(radii ** 3) / np.prod(hi - lo)
+        raise ValueError(f"could place only {placed} of {len(radii)} spheres without overlap "
+                         f"(requested solid fraction {solid:.2f}); enlarge the box or lower the count")
+    return pos, radii
+
+
+@nb.njit(cache=True)
+def _insert_spheres(radii, lo, hi, trials):
+    """Random sequential addition with a uniform cell grid (cell = largest diameter)."""
+    n = radii.shape[0]
+    cell = 2.0 * radii[0]
+    dims = np.empty(3, np.int64)
+    for a in range(3):
+        dims[a] = max(1, int((hi[a] - lo[a]) / cell))
+    head = -np.ones(dims[0] * dims[1] * dims[2], np.int64)
+    nxt = -np.ones(n, np.int64)
+    pos = np.zeros((n, 3))
+    placed = 0
+    for i in range(n):
+        r = radii[i]
+        ok = False
+        for t in range(trials.shape[1]):
+            c = np.empty(3)
+            ic = np.empty(3, np.int64)
+            for a in range(3):
+                c[a] = lo[a] + r + trials[i, t, a] * (hi[a] - lo[a] - 2.0 * r)
+                ic[a] = min(dims[a] - 1, int((c[a] - lo[a]) / (hi[a] - lo[a]) * dims[a]))
+            ok = True
+            for dx in range(-1, 2):
+                for dy in range(-1, 2):
+                    for dz in range(-1, 2):
+                        jx, jy, jz = ic[0] + dx, ic[1] + dy, ic[2] + dz
+                        if jx < 0 or jy < 0 or jz < 0 or jx >= dims[0] or jy >= dims[1] or jz >= dims[2]:
+                            continue
+                        j = head[(jx * dims[1] + jy) * dims[2] + jz]
+                        while j >= 0 and ok:
+                            d2 = 0.0
+                            for a in range(3):
+                                d2 += (c[a] - pos[j, a]) ** 2
+                            if d2 < (r + radii[j]) ** 2:
+                                ok = False
+                            j = nxt[j]
+            if ok:
+                for a in range(3):
+                    pos[i, a] = c[a]
+                key = (ic[0] * dims[1] + ic[1]) * dims[2] + ic[2]
+                nxt[i] = head[key]
+                head[key] = i
+                placed += 1
+                break
+        if not ok:
+            break
+    return pos[:placed], placed
+
+
+def save_packing(path, positions, radii, **metadata):
+    """Write a packing as ``.npz`` or as text ``x y z r`` (by the file suffix)."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        np.savez(path, positions=positions, radii=radii, **metadata)
+    else:
+        header = "x y z r  [m]" + "".join(f"\n{k} = {v}" for k, v in metadata.items())
+        np.savetxt(path, np.column_stack([positions, radii]), header=header, fmt="%.9e")
+
+
+def load_packing(path):
+    """Read a packing written by :func:`save_packing`, YADE/ESyS text, or a LIGGGHTS dump."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        with np.load(path) as data:
+            return np.asarray(data["positions"], float), np.asarray(data["radii"], float)
+    text = path.read_text().splitlines()
+    atoms = [i for i, line in enumerate(text) if line.startswith("ITEM: ATOMS")]
+    if atoms:
+        cols = text[atoms[0]].split()[2:]
+        table = np.loadtxt(text[atoms[0] + 1:], ndmin=2)
+        idx = [cols.index(c) for c in ("x", "y", "z", "radius")]
+        return table[:, idx[:3]].copy(), table[:, idx[3]].copy()
+    table = np.loadtxt(path, ndmin=2, comments="#")
+    if table.shape[1] < 4:
+        raise ValueError(f"{path}: a text packing needs 4 columns 'x y z r', found {table.shape[1]}")
+    return table[:, :3].copy(), table[:, 3].copy()
