@@ -83,7 +83,8 @@ def _schema():
                 walk(inner, key + ".")
             else:
                 default = "required" if field.is_required() else f"default {field.default!r}"
-                ann = str(field.annotation).replace("typing.", "")
+                ann = field.annotation
+                ann = ann.__name__ if isinstance(ann, type) else str(ann).replace("typing.", "")
                 say(f"  {key:32s} {ann:38s} {default:22s} {field.description or ''}")
     walk(Case, "")
     return 0
