@@ -88,7 +88,7 @@ class DemSection(_Section):
     local_damping: float = Field(default=0.0, ge=0, lt=1, description="non-viscous background damping alpha_b [-]")
     viscous_damping: float = Field(default=0.0, ge=0, description="viscous background damping alpha_v [1/s]")
     materials: list[DemMaterial] = Field(min_length=1, description="[[dem.materials]] tables")
-    particles: DemParticles
+    particles: Optional[DemParticles] = Field(default=None, description="[dem.particles]: the spheres of a 'dem' case")
     walls: list[DemWall] = Field(default_factory=list, description="[[dem.walls]] tables")
 
 
@@ -228,6 +228,8 @@ def _check_dem(path, dem):
         if name in names[:i]:
             raise CaseError(path, f"dem.materials[{i}].name", name, "material names must be unique")
     p = dem.particles
+    if p is None:
+        raise CaseError(path, "dem.particles", None, "a case of kind 'dem' needs a [dem.particles] table")
     if p.material not in names:
         raise CaseError(path, "dem.particles.material", p.material, f"must be one of the materials: {names}")
     if p.source == "file":
