@@ -1,0 +1,47 @@
+"""de_domain — Numba discrete element method of spheres, plane walls and triangle
+facets (DESIGN.md §2). Knows nothing of DOLFINx.
+
+Public API
+----------
+``Material(density=2650, young=1e8, poisson=0.25, friction=0.5, restitution=0.5,
+stiffness_ratio=1.5, rolling_stiffness=0.0, rolling_friction=0.0)``
+    Frozen dataclass; pair values by the mixing rules in ``de_domain.materials``.
+
+``Particles(pos, radius, mass, inertia=None, vel=None, angvel=None, material=None, group=None, n_owned=None)``
+``Particles.from_spheres(positions, radii, material_ids=None, materials=None, velocities=None)``
+    Struct of arrays: ``pos vel angvel force torque`` (n, 3); ``radius mass inertia`` (n,);
+    ``material group`` (n,) int32; ``blocked prescribed`` (n, 6) bool (x y z rx ry rz);
+    ``prescribed_velocity`` (n, 6); ``n``, ``n_owned`` (owned first, then ghosts).
+
+``PlaneWall(point, normal, material=0, velocity=(0, 0, 0))``
+    ``.point`` (movable between steps; work is booked), ``.velocity``, ``.force``
+    (total force of the particles on the wall, last step).
+
+``FacetMesh(vertices, triangles, material=0)``, ``FacetMesh.from_file(path, material=0, physical=None)``,
+``FacetMesh.from_stl(path)``,
+``FacetMesh.from_gmsh(path, physical=None)``
+    ``.velocity`` (rigid translation), ``.set_vertex_state(positions, velocities)``,
+    ``.vertex_force`` (nv, 3), ``.vertex_impulse`` (nv, 3), ``.reset_impulse()``,
+    ``.force``; ``.source_nodes`` (gmsh node ids of the vertices).
+
+``Engine(particles, materials, walls=(), facets=(), contact_law="linear"|"hertz",
+gravity=(0, 0, -9.81), dt=None, safety_factor=0.3, local_damping=0.0,
+viscous_damping=0.0, skin=None)``
+    ``.step()``, ``.run(nsteps)``, ``.time``, ``.step_count``, ``.dt``,
+    ``.critical_timestep()``, ``.energy()`` (dict incl. ``residual``),
+    ``.contacts()`` (dict of arrays), ``.save_checkpoint(path)``,
+    ``Engine.load_checkpoint(path)``.
+
+``de_domain.diagnostics`` (each takes the engine, some a region): ``unbalanced_force_ratio``, ``kinetic_energy``,
+``coordination_number``, ``solid_volume``, ``porosity``, ``void_ratio``,
+``love_weber_stress`` with ``BoxRegion(lo, hi)`` / ``SphereRegion(center, radius)``.
+
+``de_domain.io``: ``write_particles_vtu(path, particles)``, ``write_facets_vtu(path, mesh)``,
+``write_frame(directory, engine, step)``.
+"""
+from .engine import Engine
+from .materials import Material
+from .particles import Particles
+from .walls import FacetMesh, PlaneWall
+
+__all__ = ["Engine", "FacetMesh", "Material", "Particles", "PlaneWall"]

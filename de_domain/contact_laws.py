@@ -1,0 +1,175 @@
+"""Contact laws for one contact (DESIGN.md §2), shared by sphere–sphere, sphere–wall
+and sphere–facet kernels.
+
+Conventions (DESIGN.md §2): ``n`` points from body i (always a sphere) to body j
+(sphere, wall or facet); ``overlap`` δ > 0 in contact; ``v_r`` is the velocity of
+j's contact point relative to i's; the returned force is the force **on i** (j gets
+the opposite). The rolling moment ``M_r`` is stored as the moment on i (j gets −M_r);
+it is the −k_r Δθ_r spring of DESIGN.md §2 seen from j.
+
+Law selection is an integer (``LINEAR`` or ``HERTZ``) resolved in one place,
+:func:`normal_force_and_stiffness`; every kernel calls :func:`contact_force`.
+"""
+import math
+
+from numba import njit
+
+from .materials import (
+    PAIR_DAMPING_RATIO,
+    PAIR_E_STAR,
+    PAIR_FRICTION,
+    PAIR_G_STAR,
+    PAIR_ROLLING_FRICTION,
+    PAIR_ROLLING_STIFFNESS,
+    PAIR_STIFFNESS_RATIO,
+)
+
+LINEAR = 0
+HERTZ = 1
+LAWS = {"linear": LINEAR, "hertz": HERTZ}
+
+
+@njit(cache=True)
+def linear_normal_stiffness(young_i, radius_i, young_j, radius_j):
+    """k_n = k_i k_j/(k_i + k_j) with k = 4 E r (thesis Eq. 3.28–3.30): 2 E r* for equal E."""
+    k_i = 4.0 * young_i * radius_i
+    k_j = 4.0 * young_j * radius_j
+    return k_i * k_j / (k_i + k_j)
+
+
+@njit(cache=True)
+def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
+    """Elastic normal force, tangent normal stiffness, tangential stiffness, stored energy.
+
+    LINEAR: f = k_n δ, k_t = k_n/κ, U = ½ k_n δ².
+    HERTZ:  f = 4/3 E* √(R* δ) δ, k_n = df/dδ = 2 E* √(R* δ), k_t = 8 G* √(R* δ),
+            U = 8/15 E* √R* δ^{5/2}.
+    """
+    if law == HERTZ:
+        root = math.sqrt(r_star * overlap)
+        e_star = params[PAIR_E_STAR]
+        f = 4.0 / 3.0 * e_star * root * overlap
+        return f, 2.0 * e_star * root, 8.0 * params[PAIR_G_STAR] * root, 0.4 * f * overlap
+    f = k_linear * overlap
+    return f, k_linear, k_linear / params[PAIR_STIFFNESS_RATIO], 0.5 * f * overlap
+
+
+@njit(cache=True)
+def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, wrx, wry, wrz,
+                  k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
+    """One contact step of DESIGN.md §2.
+
+    Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0.
+    Tangential: stored force rotated into the new tangent plane (magnitude kept),
+    F_t* = F_t + k_t v_rt Δt, Coulomb radial return |F_t| ≤ μ f_n.
+    Rolling: M_r* = M_r + k_r Δθ_r (moment on i, Δθ_r = (ω_j − ω_i)Δt projected on
+    the tangent plane), k_r = β_r k_t r̄², |M_r| ≤ η_r f_n r̄.
+
+    ``wr`` = ω_j − ω_i. Returns (fx, fy, fz) force on i, new (ft), new (mr), and the
+    energy terms (normal elastic, tangential elastic, rolling elastic, friction
+    dissipation in this step, damping dissipation in this step). The friction terms
+    use YADE's plastic work (|F*| − |F|)|F|/k_t.
+    """
+    f_el, k_n, k_t, e_normal = normal_force_and_stiffness(law, overlap, k_linear, r_star, params)
+    v_rn = vrx * nx + vry * ny + vrz * nz
+    c_n = 2.0 * params[PAIR_DAMPING_RATIO] * math.sqrt(m_eff * k_n)
+    f_n = f_el - c_n * v_rn
+    if f_n < 0.0:
+        f_n = 0.0
+    damping_dissipation = -(f_n - f_el) * v_rn * dt
+
+    # tangential spring: rotate into the new tangent plane, keep magnitude
+    ft_norm_old = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    dot = ftx * nx + fty * ny + ftz * nz
+    ftx -= dot * nx
+    fty -= dot * ny
+    ftz -= dot * nz
+    ft_norm_rot = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    if ft_norm_rot > 0.0:
+        scale = ft_norm_old / ft_norm_rot
+        ftx *= scale
+        fty *= scale
+        ftz *= scale
+    vtx = vrx - v_rn * nx
+    vty = vry - v_rn * ny
+    vtz = vrz - v_rn * nz
+    ftx += k_t * vtx * dt
+    fty += k_t * vty * dt
+    ftz += k_t * vtz * dt
+    ft_trial = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    ft_max = params[PAIR_FRICTION] * f_n
+    friction_dissipation = 0.0
+    if ft_trial > ft_max:
+        scale = ft_max / ft_trial
+        ftx *= scale
+        fty *= scale
+        ftz *= scale
+        if ft_max > 0.0:
+            friction_dissipation = (ft_trial - ft_max) * ft_max / k_t
+        else:  # normal force clipped to zero: the whole spring is released
+            friction_dissipation = 0.5 * ft_trial * ft_trial / k_t
+    e_tangential = 0.5 * (ft_max * ft_max if ft_trial > ft_max else ft_trial * ft_trial) / k_t
+
+    # rolling resistance (elastic–plastic spring)
+    e_rolling = 0.0
+    beta_r = params[PAIR_ROLLING_STIFFNESS]
+    if beta_r > 0.0:
+        k_r = beta_r * k_t * r_roll * r_roll
+        mr_norm_old = math.sqrt(mrx * mrx + mry * mry + mrz * mrz)
+        dot = mrx * nx + mry * ny + mrz * nz
+        mrx -= dot * nx
+        mry -= dot * ny
+        mrz -= dot * nz
+        mr_norm_rot = math.sqrt(mrx * mrx + mry * mry + mrz * mrz)
+        if mr_norm_rot > 0.0:
+            scale = mr_norm_old / mr_norm_rot
+            mrx *= scale
+            mry *= scale
+            mrz *= scale
+        w_n = wrx * nx + wry * ny + wrz * nz
+        mrx += k_r * (wrx - w_n * nx) * dt
+        mry += k_r * (wry - w_n * ny) * dt
+        mrz += k_r * (wrz - w_n * nz) * dt
+        mr_trial = math.sqrt(mrx * mrx + mry * mry + mrz * mrz)
+        mr_max = params[PAIR_ROLLING_FRICTION] * f_n * r_roll
+        mr_final = mr_trial
+        if mr_trial > mr_max:
+            scale = mr_max / mr_trial
+            mrx *= scale
+            mry *= scale
+            mrz *= scale
+            mr_final = mr_max
+            if mr_max > 0.0:
+                friction_dissipation += (mr_trial - mr_max) * mr_max / k_r
+            else:
+                friction_dissipation += 0.5 * mr_trial * mr_trial / k_r
+        e_rolling = 0.5 * mr_final * mr_final / k_r
+    else:
+        mrx = 0.0
+        mry = 0.0
+        mrz = 0.0
+
+    fx = -f_n * nx + ftx
+    fy = -f_n * ny + fty
+    fz = -f_n * nz + ftz
+    return (fx, fy, fz, ftx, fty, ftz, mrx, mry, mrz,
+            e_normal, e_tangential, e_rolling, friction_dissipation, damping_dissipation)
+
+
+@njit(cache=True)
+def released_energy(law, params, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, mry, mrz):
+    """Elastic energy left in the tangential/rolling springs when a contact opens.
+
+    It is booked as friction dissipation (the springs are released), using the
+    stiffness at the smallest overlap of the law (linear: exact; Hertz: the spring
+    force is already ≈ 0 at δ → 0 because |F_t| ≤ μ f_n → 0).
+    """
+    if law == HERTZ:
+        return 0.0
+    k_t = k_linear / params[PAIR_STIFFNESS_RATIO]
+    e = 0.5 * (ftx * ftx + fty * fty + ftz * ftz) / k_t
+    beta_r = params[PAIR_ROLLING_STIFFNESS]
+    if beta_r > 0.0:
+        k_r = beta_r * k_t * r_roll * r_roll
+        e += 0.5 * (mrx * mrx + mry * mry + mrz * mrz) / k_r
+    return e

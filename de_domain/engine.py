@@ -1,0 +1,388 @@
+"""The DEM step sequence (DESIGN.md §2; YADE-style visible engine list).
+
+One :meth:`Engine.step` is, in order:
+
+1. boundary bookkeeping   – walls/facets moved from outside since the last step
+2. neighbour update       – Verlet lists rebuilt when displacements exceed the skin
+3. sphere–sphere contacts – per-pair forces, then per-particle sums (resets forces)
+4. walls and facets       – plane walls, triangle facets, vertex force/impulse split
+5. gravity, damping, leapfrog integration of owned particles
+6. energy record          – terms at time tⁿ, increments accumulated
+7. boundaries advance     – x_wall += v_wall Δt, facet vertices += v Δt
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .contact_laws import HERTZ, LAWS
+from .integrate import BLOCK as INTEGRATE_BLOCK
+from .integrate import N_ENERGY as INTEGRATE_N_ENERGY
+from .integrate import leapfrog
+from .materials import Material, material_arrays, pair_table
+from .neighbors import NeighborList
+from .particles import ARRAY_FIELDS, Particles
+from .sphere_contacts import BLOCK as PAIR_BLOCK
+from .sphere_contacts import N_ENERGY as PAIR_N_ENERGY
+from .sphere_contacts import sphere_pair_forces, sum_pair_forces
+from .walls import BLOCK as WALL_BLOCK
+from .walls import N_ENERGY as WALL_N_ENERGY
+from .walls import FacetMesh, PlaneWall, facet_contacts, facet_vertex_forces, plane_wall_contacts
+
+STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
+               "elastic_normal", "elastic_tangential", "elastic_rolling")
+RATE_TERMS = ("work_walls", "work_boundary", "friction", "contact_damping", "background_damping")
+DISSIPATION_TERMS = ("friction", "contact_damping", "background_damping")
+WORK_TERMS = ("work_walls", "work_boundary")
+
+
+class Engine:
+    """Spheres + plane walls + facet meshes, advanced by :meth:`step` (see module docstring).
+
+    ``dt=None`` takes ``safety_factor × critical_timestep()``. ``skin`` defaults to
+    0.2 × the mean radius. ``local_damping`` α_b and ``viscous_damping`` α_v [1/s]
+    are the background damping of DESIGN.md §2.
+    """
+
+    def __init__(self, particles: Particles, materials, walls=(), facets=(), contact_law="linear",
+                 gravity=(0.0, 0.0, -9.81), dt=None, safety_factor=0.3, local_damping=0.0,
+                 viscous_damping=0.0, skin=None):
+        if contact_law not in LAWS:
+            raise ValueError(f"Engine: contact_law = {contact_law!r}; allowed: {sorted(LAWS)}")
+        if not 0.0 < safety_factor <= 1.0:
+            raise ValueError(f"Engine: safety_factor = {safety_factor!r} is outside (0, 1]")
+        if not 0.0 <= local_damping < 1.0:
+            raise ValueError(f"Engine: local_damping = {local_damping!r} is outside [0, 1)")
+        if viscous_damping < 0.0:
+            raise ValueError(f"Engine: viscous_damping = {viscous_damping!r} must be >= 0")
+        self.particles = particles
+        self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
+        n_mat = len(self.materials)
+        used = [particles.material] + [np.array([w.material]) for w in walls] + \
+               [np.array([f.material]) for f in facets]
+        used = np.concatenate(used)
+        if used.size and (used.min() < 0 or used.max() >= n_mat):
+            raise ValueError(f"Engine: material ids must be in [0, {n_mat - 1}], got {sorted(set(used.tolist()))}")
+        self.contact_law = contact_law
+        self.law = LAWS[contact_law]
+        self.pair_params = pair_table(self.materials)
+        self.density, self.young, self.poisson = material_arrays(self.materials)
+        self.walls = list(walls)
+        self.facets = list(facets)
+        self.gravity = np.array(gravity, dtype=np.float64).reshape(3)
+        self.safety_factor = float(safety_factor)
+        self.local_damping = float(local_damping)
+        self.viscous_damping = float(viscous_damping)
+        self.dt = float(dt) if dt is not None else self.safety_factor * self.critical_timestep()
+        if not self.dt > 0.0:
+            raise ValueError(f"Engine: dt = {self.dt!r} must be > 0")
+        if skin is None:
+            skin = 0.2 * float(np.mean(particles.radius)) if particles.n else 0.0
+        self.neighbors = NeighborList(skin)
+        self.time = 0.0
+        self.step_count = 0
+        self._setup_facet_topology()
+        n, nw = particles.n, len(self.walls)
+        self.wall_history = np.zeros((n, nw, 6))
+        self.wall_fn = np.zeros((n, nw))
+        self._allocate_pair_arrays(0)
+        self._energy_reset()
+
+    # ------------------------------------------------------------------ setup
+    def _setup_facet_topology(self):
+        tris, edges, mats, v_off, e_off = [], [], [], 0, 0
+        self._vertex_offsets = [0]
+        for mesh in self.facets:
+            tris.append(mesh.triangles.astype(np.int64) + v_off)
+            edges.append(mesh.triangle_edges + e_off)
+            mats.append(np.full(mesh.triangles.shape[0], mesh.material, np.int32))
+            v_off += mesh.vertices.shape[0]
+            e_off += mesh.n_edges
+            self._vertex_offsets.append(v_off)
+            mesh._engine_vertices = mesh.vertices.copy()
+        self._triangles = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+        self._triangle_edges = np.concatenate(edges) if edges else np.zeros((0, 3), np.int64)
+        self._triangle_material = np.concatenate(mats) if mats else np.zeros(0, np.int32)
+        self._vertex_force = np.zeros((v_off, 3))
+
+    def _allocate_pair_arrays(self, m):
+        self.pair_force = np.zeros((m, 3))
+        self.pair_torque_i = np.zeros((m, 3))
+        self.pair_torque_j = np.zeros((m, 3))
+        self.pair_overlap = np.zeros(m)
+        m_f = self.neighbors.f_tri.size
+        self.facet_force = np.zeros((m_f, 3))
+        self.facet_lambda = np.zeros((m_f, 3))
+
+    def critical_timestep(self):
+        """Δt_crit: linear law min √(m_i/k_n,i), k_n,i = 2 E r_i (a sphere against its
+        equal); Hertz law the P-wave estimate min r √(ρ/E) (DESIGN.md §2)."""
+        p = self.particles
+        if p.n == 0:
+            return math.inf
+        E = self.young[p.material]
+        if self.law == HERTZ:
+            rho = self.density[p.material]
+            return float(np.min(p.radius * np.sqrt(rho / E)))
+        k = 2.0 * E * p.radius
+        return float(np.min(np.sqrt(p.mass / k)))
+
+    # ------------------------------------------------------------------ the step
+    def step(self):
+        """Advance one time step Δt (sequence in the module docstring)."""
+        p = self.particles
+        dt = self.dt
+        # 1. boundaries moved from outside since the last step
+        self._book_boundary_jumps()
+        vertices, vertex_vel = self._gather_facets()
+        # 2. neighbour update
+        if self.neighbors.needs_rebuild(p.pos, p.n, vertices):
+            self.neighbors.build(p.pos, p.radius, p.n, vertices, self._triangles)
+            self._allocate_pair_arrays(self.neighbors.pair_i.size)
+        nl = self.neighbors
+        # 3. sphere–sphere contacts, then per-particle sums (this resets force/torque)
+        pair_energy = np.zeros(((nl.pair_i.size + PAIR_BLOCK - 1) // PAIR_BLOCK, PAIR_N_ENERGY))
+        sphere_pair_forces(self.law, dt, p.pos, p.vel, p.angvel, p.radius, p.mass, p.material, self.young,
+                           self.pair_params, nl.pair_i, nl.pair_j, nl.history, self.pair_force,
+                           self.pair_torque_i, self.pair_torque_j, self.pair_overlap, pair_energy)
+        sum_pair_forces(p.n_owned, nl.i_start, nl.j_start, nl.j_pairs, self.pair_force, self.pair_torque_i,
+                        self.pair_torque_j, p.force, p.torque)
+        # 4. plane walls and facet meshes
+        n_blocks = (p.n_owned + WALL_BLOCK - 1) // WALL_BLOCK
+        wall_energy = np.zeros((n_blocks, WALL_N_ENERGY))
+        facet_energy = np.zeros((n_blocks, WALL_N_ENERGY))
+        if self.walls:
+            wall_force = np.zeros((n_blocks, len(self.walls), 3))
+            plane_wall_contacts(self.law, dt, p.pos, p.vel, p.angvel, p.radius, p.mass, p.material, p.n_owned,
+                                self.young, self.pair_params,
+                                np.array([w.point for w in self.walls]), np.array([w.normal for w in self.walls]),
+                                np.array([w.velocity for w in self.walls]),
+                                np.array([w.material for w in self.walls], np.int32),
+                                self.wall_history, self.wall_fn, p.force, p.torque, wall_force, wall_energy)
+            totals = wall_force.sum(axis=0)
+            for w, wall in enumerate(self.walls):
+                wall.force = totals[w].copy()
+        if self.facets:
+            facet_contacts(self.law, dt, p.pos, p.vel, p.angvel, p.radius, p.mass, p.material, p.n_owned,
+                           self.young, self.pair_params, vertices, vertex_vel, self._triangles,
+                           self._triangle_edges, self._triangle_material, nl.f_start, nl.f_tri,
+                           nl.facet_history, p.force, p.torque, self.facet_force, self.facet_lambda,
+                           facet_energy)
+            facet_vertex_forces(self._triangles, nl.f_start, nl.f_tri, self.facet_force, self.facet_lambda,
+                                self._vertex_force)
+            self._scatter_facet_forces()
+        # 5. gravity, background damping, leapfrog
+        integrate_energy = np.zeros(((p.n_owned + INTEGRATE_BLOCK - 1) // INTEGRATE_BLOCK, INTEGRATE_N_ENERGY))
+        leapfrog(dt, self.gravity, self.local_damping, self.viscous_damping, p.n_owned, p.pos, p.vel,
+                 p.angvel, p.mass, p.inertia, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
+                 p.torque, integrate_energy)
+        # 6. energy record (sums in block order: deterministic)
+        pe = pair_energy.sum(axis=0) if pair_energy.size else np.zeros(PAIR_N_ENERGY)
+        we = wall_energy.sum(axis=0) + facet_energy.sum(axis=0)
+        ie = integrate_energy.sum(axis=0)
+        self._energy_record(
+            state={"kinetic_translational": ie[0], "kinetic_rotational": ie[1], "gravity": ie[2],
+                   "elastic_normal": pe[0] + we[1], "elastic_tangential": pe[1] + we[2],
+                   "elastic_rolling": pe[2] + we[3]},
+            increments={"work_walls": we[0], "work_boundary": ie[4], "friction": pe[3] + we[4],
+                        "contact_damping": pe[4] + we[5], "background_damping": ie[3]})
+        # 7. boundaries advance
+        for wall in self.walls:
+            wall.point += wall.velocity * dt
+            wall._engine_point = wall.point.copy()
+        for mesh in self.facets:
+            mesh.vertices += mesh.vertex_velocity * dt
+            mesh._engine_vertices = mesh.vertices.copy()
+        self.time += dt
+        self.step_count += 1
+
+    def run(self, nsteps):
+        """Advance ``nsteps`` steps."""
+        for _ in range(int(nsteps)):
+            self.step()
+
+    # ------------------------------------------------------------------ boundaries
+    def _gather_facets(self):
+        if not self.facets:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return (np.concatenate([m.vertices for m in self.facets]),
+                np.concatenate([m.vertex_velocity for m in self.facets]))
+
+    def _scatter_facet_forces(self):
+        for k, mesh in enumerate(self.facets):
+            f = self._vertex_force[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
+            mesh.vertex_force = f.copy()
+            mesh.vertex_impulse += f * self.dt
+            mesh.force = f.sum(axis=0)
+
+    def _book_boundary_jumps(self):
+        """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force)."""
+        work = 0.0
+        for wall in self.walls:
+            jump = wall.point - wall._engine_point
+            if np.any(jump != 0.0):
+                work -= float(wall.force @ jump)
+                wall._engine_point = wall.point.copy()
+        for mesh in self.facets:
+            jump = mesh.vertices - mesh._engine_vertices
+            if np.any(jump != 0.0):
+                work -= float(np.sum(mesh.vertex_force * jump))
+                mesh._engine_vertices = mesh.vertices.copy()
+        self._jump_work += work
+
+    # ------------------------------------------------------------------ energy
+    def _energy_reset(self):
+        self._state = {k: 0.0 for k in STATE_TERMS}
+        self._acc = {k: 0.0 for k in RATE_TERMS}
+        self._first = {k: 0.0 for k in RATE_TERMS}
+        self._last = {k: 0.0 for k in RATE_TERMS}
+        self._initial_total = None
+        self._jump_work = 0.0
+
+    def _energy_record(self, state, increments):
+        self._state = {k: float(v) for k, v in state.items()}
+        for k, v in increments.items():
+            self._acc[k] += float(v)
+            self._last[k] = float(v)
+        if self._initial_total is None:
+            self._first = {k: float(v) for k, v in increments.items()}
+            self._initial_total = sum(self._state.values())
+
+    def energy(self):
+        """Energy balance at time tⁿ of the last step (DESIGN.md §2 diagnostics).
+
+        State terms (kinetic at v^n, gravity −Σ m g·x, elastic normal/tangential/
+        rolling), cumulative work in (walls/facets, prescribed DOFs) and dissipation
+        (friction incl. released springs, contact damping, background damping),
+        integrated with the trapezoidal rule over the recorded steps, and
+        ``residual = total − (initial_total + work − dissipated)``.
+        """
+        out = dict(self._state)
+        out["kinetic"] = out["kinetic_translational"] + out["kinetic_rotational"]
+        for k in RATE_TERMS:
+            out[k] = self._acc[k] - 0.5 * (self._first[k] + self._last[k])
+        out["work_walls"] += self._jump_work
+        out["total"] = sum(self._state.values())
+        out["initial_total"] = out["total"] if self._initial_total is None else self._initial_total
+        out["work"] = sum(out[k] for k in WORK_TERMS)
+        out["dissipated"] = sum(out[k] for k in DISSIPATION_TERMS)
+        out["residual"] = out["total"] - (out["initial_total"] + out["work"] - out["dissipated"])
+        return out
+
+    # ------------------------------------------------------------------ contacts
+    def contacts(self):
+        """Active contacts of the last step (forces at tⁿ; positions are the current ones).
+
+        Sphere pairs: ``i``, ``j``, ``force`` (on i), ``overlap``, ``normal`` (i → j),
+        ``branch`` (x_j − x_i), ``point`` (overlap midpoint).
+        Walls: ``wall_particle``, ``wall_index``, ``wall_force`` (on the particle),
+        ``wall_point``. Facets: ``facet_particle``, ``facet_triangle`` (global
+        index over ``facets``), ``facet_force`` (on the particle), ``facet_lambda``.
+        """
+        p = self.particles
+        nl = self.neighbors
+        active = self.pair_overlap > 0.0
+        i = nl.pair_i[active].astype(np.int64)
+        j = nl.pair_j[active].astype(np.int64)
+        branch = p.pos[j] - p.pos[i]
+        dist = np.linalg.norm(branch, axis=1)
+        normal = branch / dist[:, None] if dist.size else branch
+        overlap = self.pair_overlap[active]
+        point = p.pos[i] + (p.radius[i] - 0.5 * overlap)[:, None] * normal
+        out = {"i": i, "j": j, "force": self.pair_force[active], "overlap": overlap, "normal": normal,
+               "branch": branch, "point": point}
+        wp, wi = np.nonzero(self.wall_fn[: p.n_owned] > 0.0)
+        if wp.size:
+            wn = np.array([w.normal for w in self.walls])[wi]
+            wf = self.wall_fn[wp, wi][:, None] * wn + self.wall_history[wp, wi, :3]
+            dist = np.einsum("ij,ij->i", p.pos[wp] - np.array([w.point for w in self.walls])[wi], wn)
+            wpoint = p.pos[wp] - dist[:, None] * wn
+        else:
+            wf = np.zeros((0, 3))
+            wpoint = np.zeros((0, 3))
+        out.update(wall_particle=wp, wall_index=wi, wall_force=wf, wall_point=wpoint)
+        fa = np.any(self.facet_force != 0.0, axis=1)
+        particles_of = np.repeat(np.arange(nl.f_start.size - 1), np.diff(nl.f_start))
+        out.update(facet_particle=particles_of[fa], facet_triangle=nl.f_tri[fa].astype(np.int64),
+                   facet_force=self.facet_force[fa], facet_lambda=self.facet_lambda[fa])
+        return out
+
+    # ------------------------------------------------------------------ checkpoint
+    def save_checkpoint(self, path):
+        """Write the full state (particles, boundaries, contact history, energy books) as npz."""
+        data = {f"p_{k}": v for k, v in self.particles.arrays().items()}
+        data["n_owned"] = np.int64(self.particles.n_owned)
+        for field in dataclasses.fields(Material):
+            data[f"mat_{field.name}"] = np.array([getattr(m, field.name) for m in self.materials])
+        for k in ("point", "normal", "velocity", "force", "_engine_point"):
+            data[f"wall_{k}"] = np.array([getattr(w, k) for w in self.walls]).reshape(-1, 3)
+        data["wall_material"] = np.array([w.material for w in self.walls], np.int64)
+        data["n_facets"] = np.int64(len(self.facets))
+        for k, mesh in enumerate(self.facets):
+            for name in ("vertices", "triangles", "vertex_velocity", "vertex_force", "vertex_impulse",
+                         "force", "_engine_vertices"):
+                data[f"facet{k}_{name}"] = getattr(mesh, name)
+            data[f"facet{k}_material"] = np.int64(mesh.material)
+            if mesh.source_nodes is not None:
+                data[f"facet{k}_source_nodes"] = mesh.source_nodes
+        for k, v in self.neighbors.state().items():
+            data[f"nl_{k}"] = v
+        for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
+                     "pair_overlap", "facet_force", "facet_lambda", "gravity"):
+            data[name] = getattr(self, name)
+        data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
+                                   self.time])
+        data["step_count"] = np.int64(self.step_count)
+        data["contact_law"] = np.array(self.contact_law)
+        for group in ("_state", "_acc", "_first", "_last"):
+            d = getattr(self, group)
+            data[f"energy{group}"] = np.array([d[k] for k in sorted(d)])
+        data["energy_initial"] = np.array(np.nan if self._initial_total is None else self._initial_total)
+        data["energy_jump"] = np.array(self._jump_work)
+        np.savez(path, **data)
+
+    @classmethod
+    def load_checkpoint(cls, path):
+        """Rebuild an Engine from :meth:`save_checkpoint`; continuing is bit-identical."""
+        with np.load(path, allow_pickle=False) as f:
+            d = {k: f[k] for k in f.files}
+        particles = Particles.from_arrays({k: d[f"p_{k}"] for k in ARRAY_FIELDS}, int(d["n_owned"]))
+        names = [fl.name for fl in dataclasses.fields(Material)]
+        materials = [Material(**{k: float(d[f"mat_{k}"][m]) for k in names})
+                     for m in range(d["mat_density"].size)]
+        walls = []
+        for w in range(d["wall_point"].shape[0]):
+            wall = PlaneWall(d["wall_point"][w], d["wall_normal"][w], int(d["wall_material"][w]),
+                             d["wall_velocity"][w])
+            wall.normal = d["wall_normal"][w].copy()
+            wall.force = d["wall_force"][w].copy()
+            wall._engine_point = d["wall__engine_point"][w].copy()
+            walls.append(wall)
+        facets = []
+        for k in range(int(d["n_facets"])):
+            mesh = FacetMesh(d[f"facet{k}_vertices"], d[f"facet{k}_triangles"], int(d[f"facet{k}_material"]),
+                             d.get(f"facet{k}_source_nodes"))
+            for name in ("vertex_velocity", "vertex_force", "vertex_impulse", "force"):
+                setattr(mesh, name, d[f"facet{k}_{name}"].copy())
+            facets.append(mesh)
+        dt, safety, local, viscous, time = d["config"]
+        engine = cls(particles, materials, walls, facets, contact_law=str(d["contact_law"]),
+                     gravity=d["gravity"], dt=dt, safety_factor=safety, local_damping=local,
+                     viscous_damping=viscous, skin=float(d["nl_skin"]))
+        for k, mesh in enumerate(facets):
+            mesh._engine_vertices = d[f"facet{k}__engine_vertices"].copy()
+        engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
+        for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
+                     "pair_overlap", "facet_force", "facet_lambda"):
+            setattr(engine, name, d[name].copy())
+        engine.time = float(time)
+        engine.step_count = int(d["step_count"])
+        for group, keys in (("_state", STATE_TERMS), ("_acc", RATE_TERMS), ("_first", RATE_TERMS),
+                            ("_last", RATE_TERMS)):
+            setattr(engine, group, {k: float(v) for k, v in zip(sorted(keys), d[f"energy{group}"])})
+        initial = float(d["energy_initial"])
+        engine._initial_total = None if math.isnan(initial) else initial
+        engine._jump_work = float(d["energy_jump"])
+        return engine

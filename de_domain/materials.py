@@ -1,0 +1,104 @@
+"""Materials and per-pair contact parameter tables (DESIGN.md §2).
+
+A :class:`Material` holds the inputs of the thesis Table 3.2. The engine turns a
+list of materials into dense ``(n_mat, n_mat, N_PAIR)`` tables once, so the contact
+kernels only index arrays.
+
+Pair mixing rules (documented choices, YADE-like):
+  * friction μ and restitution e: the smaller of the two (``FrictPhys`` uses
+    tan(min φ));
+  * stiffness ratio κ, rolling stiffness β_r, rolling friction η_r: arithmetic mean;
+  * Hertz–Mindlin: 1/E* = Σ (1−ν²)/E, 1/G* = Σ 2(2−ν)(1+ν)/E;
+  * linear law: per-sphere springs k = 4 E r in series (``contact_laws``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, asdict
+
+import numpy as np
+
+# Columns of the pair table.
+PAIR_FRICTION = 0
+PAIR_DAMPING_RATIO = 1  # α = −ln e / √(π² + ln² e)
+PAIR_STIFFNESS_RATIO = 2  # κ = k_n / k_t
+PAIR_ROLLING_STIFFNESS = 3  # β_r
+PAIR_ROLLING_FRICTION = 4  # η_r
+PAIR_E_STAR = 5
+PAIR_G_STAR = 6
+N_PAIR = 7
+
+
+def _check(name, value, low, high, low_open=False):
+    ok = (value > low if low_open else value >= low) and value <= high
+    if not (ok and math.isfinite(value)):
+        bracket = "(" if low_open else "["
+        raise ValueError(f"Material.{name} = {value!r} is outside the allowed range {bracket}{low}, {high}]")
+
+
+@dataclass(frozen=True)
+class Material:
+    """Sphere/wall material (thesis Table 3.2, DESIGN.md §2).
+
+    density [kg/m³], young E [Pa], poisson ν, friction μ (Coulomb coefficient),
+    restitution e ∈ (0, 1], stiffness_ratio κ = k_n/k_t, rolling_stiffness β_r
+    (k_r = β_r k_t r̄²), rolling_friction η_r (|M_r| ≤ η_r f_n r̄).
+    """
+
+    density: float = 2650.0
+    young: float = 1e8
+    poisson: float = 0.25
+    friction: float = 0.5
+    restitution: float = 0.5
+    stiffness_ratio: float = 1.5
+    rolling_stiffness: float = 0.0
+    rolling_friction: float = 0.0
+
+    def __post_init__(self):
+        _check("density", self.density, 0.0, math.inf, low_open=True)
+        _check("young", self.young, 0.0, math.inf, low_open=True)
+        _check("poisson", self.poisson, -1.0, 0.5, low_open=True)
+        _check("friction", self.friction, 0.0, math.inf)
+        _check("restitution", self.restitution, 0.0, 1.0, low_open=True)
+        _check("stiffness_ratio", self.stiffness_ratio, 0.0, math.inf, low_open=True)
+        _check("rolling_stiffness", self.rolling_stiffness, 0.0, math.inf)
+        _check("rolling_friction", self.rolling_friction, 0.0, math.inf)
+
+    def as_dict(self):
+        return asdict(self)
+
+
+def damping_ratio(restitution: float) -> float:
+    """α = −ln e / √(π² + ln² e) (DESIGN.md §2, normal damping)."""
+    ln_e = math.log(restitution)
+    return -ln_e / math.sqrt(math.pi**2 + ln_e**2)
+
+
+def material_arrays(materials):
+    """Per-material arrays ``(density, young, poisson)`` as float64."""
+    density = np.array([m.density for m in materials], dtype=np.float64)
+    young = np.array([m.young for m in materials], dtype=np.float64)
+    poisson = np.array([m.poisson for m in materials], dtype=np.float64)
+    return density, young, poisson
+
+
+def pair_table(materials) -> np.ndarray:
+    """Dense ``(n_mat, n_mat, N_PAIR)`` table of pair parameters (mixing rules above)."""
+    n = len(materials)
+    if n == 0:
+        raise ValueError("materials: at least one Material is required")
+    table = np.zeros((n, n, N_PAIR))
+    for a, ma in enumerate(materials):
+        for b, mb in enumerate(materials):
+            row = table[a, b]
+            row[PAIR_FRICTION] = min(ma.friction, mb.friction)
+            row[PAIR_DAMPING_RATIO] = damping_ratio(min(ma.restitution, mb.restitution))
+            row[PAIR_STIFFNESS_RATIO] = 0.5 * (ma.stiffness_ratio + mb.stiffness_ratio)
+            row[PAIR_ROLLING_STIFFNESS] = 0.5 * (ma.rolling_stiffness + mb.rolling_stiffness)
+            row[PAIR_ROLLING_FRICTION] = 0.5 * (ma.rolling_friction + mb.rolling_friction)
+            row[PAIR_E_STAR] = 1.0 / ((1 - ma.poisson**2) / ma.young + (1 - mb.poisson**2) / mb.young)
+            row[PAIR_G_STAR] = 1.0 / (
+                2 * (2 - ma.poisson) * (1 + ma.poisson) / ma.young
+                + 2 * (2 - mb.poisson) * (1 + mb.poisson) / mb.young
+            )
+    return table

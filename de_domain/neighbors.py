@@ -1,0 +1,369 @@
+"""Neighbour search: cell (bin) lists + Verlet lists with a skin (DESIGN.md §2).
+
+* Sphere pairs are a half list (i < j), grouped by i (CSR ``i_start``); a second
+  CSR (``j_start``/``j_pairs``) lists the pairs in which a particle is j, so that
+  forces are summed per particle in a fixed order (deterministic for any thread
+  count, no atomics).
+* Sphere–facet candidates are grouped by particle (CSR ``f_start``/``f_tri``).
+* Lists are rebuilt when the largest particle displacement since the last build
+  plus the largest of (that, the largest facet-vertex displacement) exceeds the
+  skin: for spheres alone this is the usual 2·max|Δx| > skin rule.
+* Contact history (tangential spring force, rolling moment) is carried across a
+  rebuild by matching sorted int64 pair keys (i·n + j, particle·n_tri + tri).
+"""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+MAX_CELLS_PER_PARTICLE = 8
+
+
+@njit(cache=True)
+def build_cell_grid(pos, n_active, cell_size, max_cells):
+    """Counting-sort particles into a uniform grid covering their bounding box.
+
+    Returns (origin, cell_size, dims, cell_start, cell_particles, particle_cell).
+    The cell size is enlarged until the number of cells is at most ``max_cells``.
+    """
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for d in range(3):
+        lo[d] = np.inf
+        hi[d] = -np.inf
+    for i in range(n_active):
+        for d in range(3):
+            lo[d] = min(lo[d], pos[i, d])
+            hi[d] = max(hi[d], pos[i, d])
+    dims = np.ones(3, dtype=np.int64)
+    while True:
+        total = 1
+        for d in range(3):
+            dims[d] = max(1, int(math.floor((hi[d] - lo[d]) / cell_size)) + 1)
+            total *= dims[d]
+        if total <= max_cells:
+            break
+        cell_size *= 1.26
+    n_cells = dims[0] * dims[1] * dims[2]
+    particle_cell = np.empty(n_active, dtype=np.int64)
+    counts = np.zeros(n_cells + 1, dtype=np.int64)
+    for i in range(n_active):
+        c = 0
+        for d in range(3):
+            k = min(int((pos[i, d] - lo[d]) / cell_size), dims[d] - 1)
+            c = c * dims[d] + k
+        particle_cell[i] = c
+        counts[c + 1] += 1
+    cell_start = np.cumsum(counts)
+    fill = cell_start[:-1].copy()
+    cell_particles = np.empty(n_active, dtype=np.int64)
+    for i in range(n_active):
+        c = particle_cell[i]
+        cell_particles[fill[c]] = i
+        fill[c] += 1
+    return lo, cell_size, dims, cell_start, cell_particles, particle_cell
+
+
+@njit(cache=True)
+def _cell_coords(c, dims):
+    cz = c % dims[2]
+    cy = (c // dims[2]) % dims[1]
+    cx = c // (dims[1] * dims[2])
+    return cx, cy, cz
+
+
+@njit(parallel=True, cache=True)
+def _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
+                         n_active, i_start, j_out, fill):
+    """Pass 1 (fill=False): count partners j > i per i. Pass 2: write them."""
+    for i in prange(n_active):
+        cx, cy, cz = _cell_coords(particle_cell[i], dims)
+        count = 0
+        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
+            for ay in range(max(cy - 1, 0), min(cy + 2, dims[1])):
+                for az in range(max(cz - 1, 0), min(cz + 2, dims[2])):
+                    c = (ax * dims[1] + ay) * dims[2] + az
+                    for s in range(cell_start[c], cell_start[c + 1]):
+                        j = cell_particles[s]
+                        if j <= i:
+                            continue
+                        cut = radius[i] + radius[j] + skin
+                        dx = pos[j, 0] - pos[i, 0]
+                        dy = pos[j, 1] - pos[i, 1]
+                        dz = pos[j, 2] - pos[i, 2]
+                        if dx * dx + dy * dy + dz * dz < cut * cut:
+                            if fill:
+                                j_out[i_start[i] + count] = j
+                            count += 1
+        if not fill:
+            i_start[i + 1] = count
+
+
+@njit(cache=True)
+def build_pair_list(pos, radius, n_active, skin, max_cells):
+    """Half Verlet list of sphere pairs within r_i + r_j + skin, grouped by i.
+
+    Returns (pair_i, pair_j, i_start, grid) with grid the cell-list tuple.
+    """
+    r_max = 0.0
+    for i in range(n_active):
+        r_max = max(r_max, radius[i])
+    grid = build_cell_grid(pos, n_active, 2.0 * r_max + skin, max_cells)
+    lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
+    i_start = np.zeros(n_active + 1, dtype=np.int64)
+    dummy = np.empty(0, dtype=np.int32)
+    _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
+                         n_active, i_start, dummy, False)
+    i_start = np.cumsum(i_start)
+    pair_j = np.empty(i_start[-1], dtype=np.int32)
+    _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
+                         n_active, i_start, pair_j, True)
+    pair_i = np.empty(i_start[-1], dtype=np.int32)
+    for i in range(n_active):
+        for p in range(i_start[i], i_start[i + 1]):
+            pair_i[p] = i
+    return pair_i, pair_j, i_start, grid
+
+
+@njit(cache=True)
+def build_j_csr(pair_j, n):
+    """CSR of pair indices per particle on the j side (ascending pair index)."""
+    counts = np.zeros(n + 1, dtype=np.int64)
+    for p in range(pair_j.size):
+        counts[pair_j[p] + 1] += 1
+    j_start = np.cumsum(counts)
+    fill = j_start[:-1].copy()
+    j_pairs = np.empty(pair_j.size, dtype=np.int64)
+    for p in range(pair_j.size):
+        j = pair_j[p]
+        j_pairs[fill[j]] = p
+        fill[j] += 1
+    return j_start, j_pairs
+
+
+@njit(cache=True)
+def point_triangle_distance2(px, py, pz, a, b, c):
+    """Squared distance from a point to triangle abc (Ericson, RTCD §5.1.5)."""
+    q = closest_point_on_triangle(px, py, pz, a, b, c)
+    return (q[0] - px) ** 2 + (q[1] - py) ** 2 + (q[2] - pz) ** 2
+
+
+@njit(cache=True)
+def closest_point_on_triangle(px, py, pz, a, b, c):
+    """Closest point of triangle abc to p, its barycentric weights and its feature.
+
+    Ericson, Real-Time Collision Detection §5.1.5. Feature: 0 face, 1/2/3 edge
+    ab/bc/ca, 4/5/6 vertex a/b/c. Returns (qx, qy, qz, la, lb, lc, feature).
+    """
+    abx = b[0] - a[0]; aby = b[1] - a[1]; abz = b[2] - a[2]
+    acx = c[0] - a[0]; acy = c[1] - a[1]; acz = c[2] - a[2]
+    apx = px - a[0]; apy = py - a[1]; apz = pz - a[2]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a[0], a[1], a[2], 1.0, 0.0, 0.0, 4
+    bpx = px - b[0]; bpy = py - b[1]; bpz = pz - b[2]
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:
+        return b[0], b[1], b[2], 0.0, 1.0, 0.0, 5
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1.0 - v, v, 0.0, 1
+    cpx = px - c[0]; cpy = py - c[1]; cpz = pz - c[2]
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:
+        return c[0], c[1], c[2], 0.0, 0.0, 1.0, 6
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 1.0 - w, 0.0, w, 3
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
+                0.0, 1.0 - w, w, 2)
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w,
+            1.0 - v - w, v, w, 0)
+
+
+@njit(cache=True)
+def _triangles_per_cell(vertices, triangles, reach, lo, cell_size, dims):
+    """CSR cell → triangles whose bounding box grown by ``reach`` overlaps the cell."""
+    n_cells = dims[0] * dims[1] * dims[2]
+    n_tri = triangles.shape[0]
+    ranges = np.empty((n_tri, 6), dtype=np.int64)
+    counts = np.zeros(n_cells + 1, dtype=np.int64)
+    for t in range(n_tri):
+        ok = True
+        for d in range(3):
+            tmin = min(vertices[triangles[t, 0], d], vertices[triangles[t, 1], d], vertices[triangles[t, 2], d]) - reach
+            tmax = max(vertices[triangles[t, 0], d], vertices[triangles[t, 1], d], vertices[triangles[t, 2], d]) + reach
+            k0 = int(math.floor((tmin - lo[d]) / cell_size))
+            k1 = int(math.floor((tmax - lo[d]) / cell_size))
+            if k1 < 0 or k0 > dims[d] - 1:
+                ok = False
+            ranges[t, 2 * d] = max(k0, 0)
+            ranges[t, 2 * d + 1] = min(k1, dims[d] - 1)
+        if not ok:
+            ranges[t, 1] = -1  # empty range
+        for ax in range(ranges[t, 0], ranges[t, 1] + 1):
+            for ay in range(ranges[t, 2], ranges[t, 3] + 1):
+                for az in range(ranges[t, 4], ranges[t, 5] + 1):
+                    counts[(ax * dims[1] + ay) * dims[2] + az + 1] += 1
+    start = np.cumsum(counts)
+    fill = start[:-1].copy()
+    cell_tris = np.empty(start[-1], dtype=np.int64)
+    for t in range(n_tri):
+        for ax in range(ranges[t, 0], ranges[t, 1] + 1):
+            for ay in range(ranges[t, 2], ranges[t, 3] + 1):
+                for az in range(ranges[t, 4], ranges[t, 5] + 1):
+                    c = (ax * dims[1] + ay) * dims[2] + az
+                    cell_tris[fill[c]] = t
+                    fill[c] += 1
+    return start, cell_tris
+
+
+@njit(parallel=True, cache=True)
+def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell, start, cell_tris,
+                          n_active, f_start, f_out, fill):
+    for i in prange(n_active):
+        c = particle_cell[i]
+        count = 0
+        cut = radius[i] + skin
+        for s in range(start[c], start[c + 1]):
+            t = cell_tris[s]
+            d2 = point_triangle_distance2(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t, 0]],
+                                          vertices[triangles[t, 1]], vertices[triangles[t, 2]])
+            if d2 < cut * cut:
+                if fill:
+                    f_out[f_start[i] + count] = t
+                count += 1
+        if not fill:
+            f_start[i + 1] = count
+
+
+@njit(cache=True)
+def build_facet_list(pos, radius, n_active, skin, vertices, triangles, grid):
+    """Sphere–triangle candidates within r + skin, grouped by particle (CSR)."""
+    lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
+    r_max = 0.0
+    for i in range(n_active):
+        r_max = max(r_max, radius[i])
+    start, cell_tris = _triangles_per_cell(vertices, triangles, r_max + skin, lo, cell_size, dims)
+    f_start = np.zeros(n_active + 1, dtype=np.int64)
+    dummy = np.empty(0, dtype=np.int32)
+    _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell, start, cell_tris,
+                          n_active, f_start, dummy, False)
+    f_start = np.cumsum(f_start)
+    f_tri = np.empty(f_start[-1], dtype=np.int32)
+    _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell, start, cell_tris,
+                          n_active, f_start, f_tri, True)
+    return f_start, f_tri
+
+
+@njit(cache=True)
+def transfer_history(old_keys, old_history, new_keys):
+    """History rows for ``new_keys``: copied from the matching old key, else zero."""
+    order = np.argsort(old_keys)
+    sorted_keys = old_keys[order]
+    new_history = np.zeros((new_keys.size, old_history.shape[1]))
+    for p in range(new_keys.size):
+        k = np.searchsorted(sorted_keys, new_keys[p])
+        if k < sorted_keys.size and sorted_keys[k] == new_keys[p]:
+            new_history[p, :] = old_history[order[k], :]
+    return new_history
+
+
+@njit(cache=True)
+def max_displacement(pos, ref_pos, n_active):
+    """Largest |x − x_ref| (serial: exact and deterministic)."""
+    m = 0.0
+    for i in range(n_active):
+        d = (pos[i, 0] - ref_pos[i, 0]) ** 2 + (pos[i, 1] - ref_pos[i, 1]) ** 2 + (pos[i, 2] - ref_pos[i, 2]) ** 2
+        m = max(m, d)
+    return math.sqrt(m)
+
+
+class NeighborList:
+    """Verlet lists (sphere pairs and sphere–facet candidates) with contact history.
+
+    ``history``: (m, 6) per sphere pair = tangential spring force (3), rolling moment (3).
+    ``facet_history``: (m_f, 6) per sphere–triangle candidate, same layout.
+    """
+
+    def __init__(self, skin, max_cells_per_particle=MAX_CELLS_PER_PARTICLE):
+        self.skin = float(skin)
+        self.max_cells_per_particle = max_cells_per_particle
+        self.pair_i = np.empty(0, np.int32)
+        self.pair_j = np.empty(0, np.int32)
+        self.history = np.zeros((0, 6))
+        self.f_start = np.zeros(1, np.int64)
+        self.f_tri = np.empty(0, np.int32)
+        self.facet_history = np.zeros((0, 6))
+        self.ref_pos = None
+        self.ref_vertices = None
+        self.n_builds = 0
+
+    def needs_rebuild(self, pos, n_active, vertices):
+        if self.ref_pos is None or self.ref_pos.shape[0] != n_active:
+            return True
+        dp = max_displacement(pos, self.ref_pos, n_active)
+        dv = max_displacement(vertices, self.ref_vertices, vertices.shape[0]) if vertices.shape[0] else 0.0
+        return dp + max(dp, dv) > self.skin
+
+    def build(self, pos, radius, n_active, vertices, triangles):
+        """Rebuild both lists and carry the contact history over by pair key."""
+        max_cells = max(1000, self.max_cells_per_particle * n_active)
+        pair_i, pair_j, i_start, grid = build_pair_list(pos, radius, n_active, self.skin, max_cells)
+        n = np.int64(n_active)
+        old_keys = self.pair_i.astype(np.int64) * n + self.pair_j
+        new_keys = pair_i.astype(np.int64) * n + pair_j
+        self.history = transfer_history(old_keys, self.history, new_keys)
+        self.pair_i, self.pair_j, self.i_start = pair_i, pair_j, i_start
+        self.j_start, self.j_pairs = build_j_csr(pair_j, n_active)
+        if triangles.shape[0]:
+            f_start, f_tri = build_facet_list(pos, radius, n_active, self.skin, vertices, triangles, grid)
+        else:
+            f_start, f_tri = np.zeros(n_active + 1, np.int64), np.empty(0, np.int32)
+        n_tri = np.int64(max(triangles.shape[0], 1))
+        old_keys = self._facet_particles() * n_tri + self.f_tri
+        self.f_start, self.f_tri = f_start, f_tri
+        self.facet_history = transfer_history(old_keys, self.facet_history,
+                                              self._facet_particles() * n_tri + f_tri)
+        self.ref_pos = pos[:n_active].copy()
+        self.ref_vertices = vertices.copy()
+        self.n_builds += 1
+
+    def _facet_particles(self):
+        counts = np.diff(self.f_start)
+        return np.repeat(np.arange(counts.size, dtype=np.int64), counts)
+
+    def state(self):
+        """Arrays that make the list and its history restartable bit-for-bit."""
+        return {
+            "pair_i": self.pair_i, "pair_j": self.pair_j, "history": self.history,
+            "f_start": self.f_start, "f_tri": self.f_tri, "facet_history": self.facet_history,
+            "ref_pos": self.ref_pos, "ref_vertices": self.ref_vertices,
+            "skin": np.float64(self.skin), "n_builds": np.int64(self.n_builds),
+        }
+
+    def set_state(self, state):
+        self.skin = float(state["skin"])
+        self.n_builds = int(state["n_builds"])
+        self.pair_i = state["pair_i"].astype(np.int32)
+        self.pair_j = state["pair_j"].astype(np.int32)
+        self.history = state["history"].copy()
+        n_active = state["ref_pos"].shape[0]
+        self.i_start = np.concatenate(([0], np.cumsum(np.bincount(self.pair_i, minlength=n_active)))).astype(np.int64)
+        self.j_start, self.j_pairs = build_j_csr(self.pair_j, n_active)
+        self.f_start = state["f_start"].astype(np.int64)
+        self.f_tri = state["f_tri"].astype(np.int32)
+        self.facet_history = state["facet_history"].copy()
+        self.ref_pos = state["ref_pos"].copy()
+        self.ref_vertices = state["ref_vertices"].copy()

@@ -1,0 +1,349 @@
+"""Walls: infinite planes and triangle facet meshes (DESIGN.md §2 "Walls", §5).
+
+Both are two-body contacts with a sphere i and the wall as body j: the wall is
+rigid, infinitely massive (m* = m_i) and, for the linear law, treated as a mirror
+sphere of the same material radius (k_n = k_i k_w/(k_i + k_w), k = 4 E r, i.e.
+2 E r for equal E); for Hertz R* = r_i (sphere on a half space).
+
+Facet meshes: a sphere gets one contact per triangle whose closest point lies
+within its radius, except that edge and vertex contacts are deduplicated inside
+one mesh (DESIGN.md §2 "exactly one contact at a shared edge or vertex"):
+  * an edge contact is dropped if the sphere has a face contact with a triangle
+    incident to that edge, or an edge contact on the same edge with a triangle
+    of lower index;
+  * a vertex contact is dropped if the sphere has a face or edge contact with a
+    triangle containing that vertex, or a vertex contact on the same vertex with
+    a triangle of lower index.
+The force a sphere exerts on a triangle is split on its vertices with the
+barycentric coordinates of the closest point (−λ_a F, DESIGN.md §5).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .contact_laws import contact_force, linear_normal_stiffness, released_energy
+from .neighbors import closest_point_on_triangle
+
+BLOCK = 256
+N_ENERGY = 6  # work in, e_normal, e_tangential, e_rolling, friction, damping
+
+
+class PlaneWall:
+    """Infinite plane through ``point`` with unit ``normal`` pointing to the particle side.
+
+    ``velocity`` is a rigid translation applied by the engine each step (x += v Δt).
+    ``point`` may also be set between steps; the jump is booked as boundary work
+    with the previous step's force. ``force``: total force the particles exert on
+    the wall in the last step.
+    """
+
+    def __init__(self, point, normal, material=0, velocity=(0.0, 0.0, 0.0)):
+        self.point = np.array(point, dtype=np.float64).reshape(3)
+        normal = np.array(normal, dtype=np.float64).reshape(3)
+        norm = np.linalg.norm(normal)
+        if norm == 0.0:
+            raise ValueError("PlaneWall: 'normal' must be a non-zero vector")
+        self.normal = normal / norm
+        self.material = int(material)
+        self.velocity = np.array(velocity, dtype=np.float64).reshape(3)
+        self.force = np.zeros(3)
+        self._engine_point = self.point.copy()
+
+
+class FacetMesh:
+    """Triangle mesh wall (two-sided). ``vertices`` (nv, 3), ``triangles`` (nt, 3) int.
+
+    Motion: fixed (zero velocity), rigid ``velocity = (vx, vy, vz)``, or per-vertex
+    state from outside via :meth:`set_vertex_state`; the engine advances the
+    vertices linearly, x += v Δt, after every step (DESIGN.md §5 step 2).
+
+    After each step: ``vertex_force`` (nv, 3) the force the particles exert on each
+    vertex (barycentric split), ``vertex_impulse`` its time integral since the last
+    :meth:`reset_impulse`, ``force`` the total on the mesh.
+    """
+
+    def __init__(self, vertices, triangles, material=0, source_nodes=None):
+        self.vertices = np.array(vertices, dtype=np.float64).reshape(-1, 3)
+        self.triangles = np.array(triangles, dtype=np.int32).reshape(-1, 3)
+        nv = self.vertices.shape[0]
+        if self.triangles.size and (self.triangles.min() < 0 or self.triangles.max() >= nv):
+            raise ValueError(f"FacetMesh: triangle vertex ids must be in [0, {nv - 1}]")
+        self.material = int(material)
+        self.vertex_velocity = np.zeros((nv, 3))
+        self.vertex_force = np.zeros((nv, 3))
+        self.vertex_impulse = np.zeros((nv, 3))
+        self.force = np.zeros(3)
+        self.source_nodes = None if source_nodes is None else np.asarray(source_nodes, dtype=np.int64)
+        self.triangle_edges, self.n_edges = _edge_ids(self.triangles)
+
+    @property
+    def velocity(self):
+        """Mean vertex velocity; setting it prescribes a rigid translation."""
+        return self.vertex_velocity.mean(axis=0) if len(self.vertex_velocity) else np.zeros(3)
+
+    @velocity.setter
+    def velocity(self, value):
+        self.vertex_velocity[:] = np.asarray(value, dtype=np.float64).reshape(3)
+
+    def set_vertex_state(self, positions, velocities):
+        """Set every vertex position and velocity (e.g. the FE interface, DESIGN.md §5)."""
+        self.vertices[:] = np.asarray(positions, dtype=np.float64).reshape(self.vertices.shape)
+        self.vertex_velocity[:] = np.asarray(velocities, dtype=np.float64).reshape(self.vertices.shape)
+
+    def reset_impulse(self):
+        self.vertex_impulse[:] = 0.0
+
+    @classmethod
+    def from_file(cls, path, material=0, physical=None):
+        """STL (``.stl``) or gmsh (``.msh``, optional physical tag) by file suffix."""
+        if str(path).lower().endswith(".stl"):
+            return cls.from_stl(path, material)
+        return cls.from_gmsh(path, physical, material)
+
+    @classmethod
+    def from_stl(cls, path, material=0):
+        """Read an STL surface with meshio, merging duplicated vertices."""
+        import meshio
+
+        mesh = meshio.read(path)
+        tris = np.concatenate([c.data for c in mesh.cells if c.type == "triangle"])
+        points, inverse = np.unique(mesh.points[tris.ravel()], axis=0, return_inverse=True)
+        return cls(points, inverse.reshape(-1, 3), material)
+
+    @classmethod
+    def from_gmsh(cls, path, physical=None, material=0):
+        """Read the triangles of a gmsh .msh (optionally one physical tag) via meshio.
+
+        ``source_nodes`` keeps each vertex's node index in the file (for the FE map).
+        """
+        import meshio
+
+        mesh = meshio.read(path)
+        blocks = []
+        for k, cell in enumerate(mesh.cells):
+            if cell.type != "triangle":
+                continue
+            data = cell.data
+            if physical is not None:
+                tags = mesh.cell_data["gmsh:physical"][k]
+                data = data[tags == physical]
+            blocks.append(data)
+        if not blocks or sum(len(b) for b in blocks) == 0:
+            raise ValueError(f"FacetMesh.from_gmsh: no triangles in {path!r} (physical={physical!r})")
+        tris = np.concatenate(blocks)
+        used, inverse = np.unique(tris.ravel(), return_inverse=True)
+        return cls(mesh.points[used, :3], inverse.reshape(-1, 3), material, source_nodes=used)
+
+
+def _edge_ids(triangles):
+    """Edge id of edge k (vertices k, k+1) of every triangle; shared edges share ids."""
+    if triangles.shape[0] == 0:
+        return np.zeros((0, 3), np.int64), 0
+    a = triangles[:, [0, 1, 2]].ravel()
+    b = triangles[:, [1, 2, 0]].ravel()
+    keys = np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+    _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return inverse.reshape(-1, 3).astype(np.int64), int(inverse.max()) + 1
+
+
+@njit(parallel=True, cache=True)
+def plane_wall_contacts(law, dt, pos, vel, angvel, radius, mass, material, n_owned, young, pair_params,
+                        wall_point, wall_normal, wall_vel, wall_mat, history, wall_fn,
+                        force, torque, block_wall_force, block_energy):
+    """Sphere–plane contacts (DESIGN.md §2 geometry with the wall as body j).
+
+    Adds the force/torque on each sphere; stores the normal force per (sphere, wall)
+    in ``wall_fn``; per-block sums of the force on each wall and of the energy terms
+    (summed later in block order: deterministic for any thread count).
+    """
+    n_walls = wall_point.shape[0]
+    n_blocks = (n_owned + BLOCK - 1) // BLOCK
+    for b in prange(n_blocks):
+        for w in range(n_walls):
+            for d in range(3):
+                block_wall_force[b, w, d] = 0.0
+        for k in range(N_ENERGY):
+            block_energy[b, k] = 0.0
+        for i in range(b * BLOCK, min((b + 1) * BLOCK, n_owned)):
+            r = radius[i]
+            for w in range(n_walls):
+                dist = 0.0
+                for d in range(3):
+                    dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+                overlap = r - dist
+                params = pair_params[material[i], wall_mat[w]]
+                k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
+                h = history[i, w]
+                if overlap <= 0.0:
+                    if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
+                        block_energy[b, 4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2],
+                                                              h[3], h[4], h[5])
+                        h[:] = 0.0
+                    wall_fn[i, w] = 0.0
+                    continue
+                nx = -wall_normal[w, 0]
+                ny = -wall_normal[w, 1]
+                nz = -wall_normal[w, 2]
+                arm = r - 0.5 * overlap
+                # velocity of i's contact point: v + ω × (arm n)
+                vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+                vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+                vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+                res = contact_force(law, params, nx, ny, nz, overlap,
+                                    wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz,
+                                    -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
+                                    k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
+                fx, fy, fz = res[0], res[1], res[2]
+                h[0] = res[3]; h[1] = res[4]; h[2] = res[5]
+                h[3] = res[6]; h[4] = res[7]; h[5] = res[8]
+                wall_fn[i, w] = -(fx * nx + fy * ny + fz * nz)
+                force[i, 0] += fx
+                force[i, 1] += fy
+                force[i, 2] += fz
+                torque[i, 0] += arm * (ny * fz - nz * fy) + res[6]
+                torque[i, 1] += arm * (nz * fx - nx * fz) + res[7]
+                torque[i, 2] += arm * (nx * fy - ny * fx) + res[8]
+                block_wall_force[b, w, 0] -= fx
+                block_wall_force[b, w, 1] -= fy
+                block_wall_force[b, w, 2] -= fz
+                block_energy[b, 0] += (fx * wall_vel[w, 0] + fy * wall_vel[w, 1] + fz * wall_vel[w, 2]) * dt
+                for k in range(5):
+                    block_energy[b, k + 1] += res[9 + k]
+
+
+@njit(cache=True)
+def _keep_facet_contact(i, s, tri, feature, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
+    """Deduplication rule of the module docstring for candidate ``s`` of sphere ``i``."""
+    if feature == 0:
+        return True
+    if feature <= 3:
+        edge = tri_edges[tri, feature - 1]
+        vertex = -1
+    else:
+        edge = -1
+        vertex = triangles[tri, feature - 4]
+    r2 = radius[i] * radius[i]
+    for s2 in range(f_start[i], f_start[i + 1]):
+        if s2 == s:
+            continue
+        t2 = f_tri[s2]
+        q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t2, 0]],
+                                      vertices[triangles[t2, 1]], vertices[triangles[t2, 2]])
+        if (q[0] - pos[i, 0]) ** 2 + (q[1] - pos[i, 1]) ** 2 + (q[2] - pos[i, 2]) ** 2 >= r2:
+            continue
+        f2 = q[6]
+        if edge >= 0:
+            if tri_edges[t2, 0] == edge or tri_edges[t2, 1] == edge or tri_edges[t2, 2] == edge:
+                if f2 == 0:
+                    return False
+                if f2 <= 3 and tri_edges[t2, f2 - 1] == edge and t2 < tri:
+                    return False
+        else:
+            if triangles[t2, 0] == vertex or triangles[t2, 1] == vertex or triangles[t2, 2] == vertex:
+                if f2 <= 3:
+                    return False
+                if triangles[t2, f2 - 4] == vertex and t2 < tri:
+                    return False
+    return True
+
+
+@njit(parallel=True, cache=True)
+def facet_contacts(law, dt, pos, vel, angvel, radius, mass, material, n_owned, young, pair_params,
+                   vertices, vertex_vel, triangles, tri_edges, tri_mat, f_start, f_tri, history,
+                   force, torque, cand_force, cand_lambda, block_energy):
+    """Sphere–triangle contacts (closest point: face, edge or vertex; deduplicated).
+
+    Adds force/torque on the spheres; ``cand_force`` (force on the sphere, zero if
+    inactive) and ``cand_lambda`` (barycentric weights) per candidate feed the
+    vertex-force split done serially in :func:`facet_vertex_forces`.
+    """
+    n_blocks = (n_owned + BLOCK - 1) // BLOCK
+    for b in prange(n_blocks):
+        for k in range(N_ENERGY):
+            block_energy[b, k] = 0.0
+        for i in range(b * BLOCK, min((b + 1) * BLOCK, n_owned)):
+            r = radius[i]
+            for s in range(f_start[i], f_start[i + 1]):
+                t = f_tri[s]
+                a = vertices[triangles[t, 0]]
+                bb = vertices[triangles[t, 1]]
+                c = vertices[triangles[t, 2]]
+                q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], a, bb, c)
+                dx = q[0] - pos[i, 0]
+                dy = q[1] - pos[i, 1]
+                dz = q[2] - pos[i, 2]
+                dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+                overlap = r - dist
+                params = pair_params[material[i], tri_mat[t]]
+                k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
+                h = history[s]
+                active = overlap > 0.0 and _keep_facet_contact(i, s, t, q[6], pos, radius, vertices,
+                                                                 triangles, tri_edges, f_start, f_tri)
+                if not active:
+                    if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
+                        block_energy[b, 4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2],
+                                                              h[3], h[4], h[5])
+                        h[:] = 0.0
+                    cand_force[s, :] = 0.0
+                    continue
+                if dist > 0.0:
+                    nx = dx / dist
+                    ny = dy / dist
+                    nz = dz / dist
+                else:  # centre on the triangle: use the face normal
+                    ux = bb[0] - a[0]; uy = bb[1] - a[1]; uz = bb[2] - a[2]
+                    wx = c[0] - a[0]; wy = c[1] - a[1]; wz = c[2] - a[2]
+                    nx = uy * wz - uz * wy
+                    ny = uz * wx - ux * wz
+                    nz = ux * wy - uy * wx
+                    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+                    nx /= norm
+                    ny /= norm
+                    nz /= norm
+                la, lb, lc = q[3], q[4], q[5]
+                va = vertex_vel[triangles[t, 0]]
+                vb = vertex_vel[triangles[t, 1]]
+                vc = vertex_vel[triangles[t, 2]]
+                vfx = la * va[0] + lb * vb[0] + lc * vc[0]
+                vfy = la * va[1] + lb * vb[1] + lc * vc[1]
+                vfz = la * va[2] + lb * vb[2] + lc * vc[2]
+                arm = r - 0.5 * overlap
+                vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+                vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+                vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+                res = contact_force(law, params, nx, ny, nz, overlap, vfx - vcx, vfy - vcy, vfz - vcz,
+                                    -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
+                                    k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
+                fx, fy, fz = res[0], res[1], res[2]
+                h[0] = res[3]; h[1] = res[4]; h[2] = res[5]
+                h[3] = res[6]; h[4] = res[7]; h[5] = res[8]
+                cand_force[s, 0] = fx
+                cand_force[s, 1] = fy
+                cand_force[s, 2] = fz
+                cand_lambda[s, 0] = la
+                cand_lambda[s, 1] = lb
+                cand_lambda[s, 2] = lc
+                force[i, 0] += fx
+                force[i, 1] += fy
+                force[i, 2] += fz
+                torque[i, 0] += arm * (ny * fz - nz * fy) + res[6]
+                torque[i, 1] += arm * (nz * fx - nx * fz) + res[7]
+                torque[i, 2] += arm * (nx * fy - ny * fx) + res[8]
+                block_energy[b, 0] += (fx * vfx + fy * vfy + fz * vfz) * dt
+                for k in range(5):
+                    block_energy[b, k + 1] += res[9 + k]
+
+
+@njit(cache=True)
+def facet_vertex_forces(triangles, f_start, f_tri, cand_force, cand_lambda, vertex_force):
+    """Force on the facet vertices: −λ_a F per active candidate (serial, fixed order)."""
+    vertex_force[:, :] = 0.0
+    for s in range(f_tri.size):
+        if cand_force[s, 0] == 0.0 and cand_force[s, 1] == 0.0 and cand_force[s, 2] == 0.0:
+            continue
+        t = f_tri[s]
+        for a in range(3):
+            v = triangles[t, a]
+            for d in range(3):
+                vertex_force[v, d] -= cand_lambda[s, a] * cand_force[s, d]
