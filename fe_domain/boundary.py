@@ -1,0 +1,117 @@
+"""Boundary conditions, loads and damping laws, addressed by physical-group name.
+
+These are plain parameter records: the solver (``explicit.py``) turns them into
+node/dof index arrays and nodal force vectors once, at construction.  A time
+``amplitude`` multiplies a load or a prescribed velocity (default: constant 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+
+def constant(t: float) -> float:
+    """Unit amplitude at all times."""
+    return 1.0
+
+
+def ramp(duration: float) -> Callable[[float], float]:
+    """Amplitude rising linearly from 0 to 1 over ``duration`` s, then held."""
+    if duration <= 0:
+        raise ValueError(f"ramp duration = {duration!r}: must be > 0 (s)")
+    return lambda t: min(t / duration, 1.0)
+
+
+@dataclass(frozen=True)
+class Fixed:
+    """u = v = 0 on the nodes of facet group ``boundary`` for ``components`` (0=x, 1=y, 2=z)."""
+
+    boundary: str
+    components: Sequence[int] = (0, 1, 2)
+
+
+@dataclass(frozen=True)
+class PrescribedVelocity:
+    """v = amplitude(t) · velocity on the nodes of ``boundary``; None leaves a component free."""
+
+    boundary: str
+    velocity: Sequence[float | None]
+    amplitude: Callable[[float], float] = constant
+
+
+@dataclass(frozen=True)
+class Traction:
+    """Surface traction t (Pa, a constant vector) on ``boundary``, times amplitude(t)."""
+
+    boundary: str
+    traction: Sequence[float]
+    amplitude: Callable[[float], float] = constant
+
+
+@dataclass(frozen=True)
+class NormalPressure:
+    """Pressure (Pa, > 0 compressive) normal to ``boundary``, times amplitude(t)."""
+
+    boundary: str
+    pressure: float
+    amplitude: Callable[[float], float] = constant
+
+
+@dataclass(frozen=True)
+class BodyForce:
+    """Body force per unit mass b (m/s², e.g. gravity (0, 0, −9.81)), times amplitude(t)."""
+
+    acceleration: Sequence[float]
+    amplitude: Callable[[float], float] = constant
+
+
+@dataclass(frozen=True)
+class MassProportionalDamping:
+    """f_damp = α M v^{n−½}, α in 1/s (critical for a mode ω when α = 2ω)."""
+
+    alpha: float
+
+    def force(self, unbalanced: np.ndarray, velocity: np.ndarray, mass: np.ndarray) -> np.ndarray:
+        return self.alpha * mass * velocity
+
+
+@dataclass(frozen=True)
+class LocalNonViscousDamping:
+    """Cundall local damping (DESIGN §2, per component): f_damp = α |F| sign(v^{n−½}).
+
+    F is the unbalanced nodal force f_ext − f_int; 0 ≤ α < 1 (0.7 is usual).
+    """
+
+    alpha: float
+
+    def force(self, unbalanced: np.ndarray, velocity: np.ndarray, mass: np.ndarray) -> np.ndarray:
+        return self.alpha * np.abs(unbalanced) * np.sign(velocity)
+
+
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear elasticity: Young's modulus E (Pa), Poisson ratio ν, density ρ (kg/m³)."""
+
+    E: float
+    nu: float
+    rho: float
+    shear_modulus: float = field(init=False)
+    bulk_modulus: float = field(init=False)
+
+    def __post_init__(self):
+        if not self.E > 0:
+            raise ValueError(f"Material.E = {self.E!r}: must be > 0 (Pa)")
+        if not -1.0 < self.nu < 0.5:
+            raise ValueError(f"Material.nu = {self.nu!r}: must lie in (-1, 0.5)")
+        if not self.rho > 0:
+            raise ValueError(f"Material.rho = {self.rho!r}: must be > 0 (kg/m^3)")
+        object.__setattr__(self, "shear_modulus", self.E / (2.0 * (1.0 + self.nu)))
+        object.__setattr__(self, "bulk_modulus", self.E / (3.0 * (1.0 - 2.0 * self.nu)))
+
+    @property
+    def p_wave_speed(self) -> float:
+        """c_p = √((K + 4G/3)/ρ)."""
+        return float(np.sqrt((self.bulk_modulus + 4.0 * self.shear_modulus / 3.0) / self.rho))

@@ -1,0 +1,393 @@
+"""Explicit mixed displacement–pressure solid on DOLFINx (DESIGN §4, binding).
+
+Unknowns (all P1, nodal): u, v (vector), p (mean stress, tension positive), π
+(projected pressure gradient, vector).  Lumped diagonal matrices M = ρ∫N,
+M_p = ∫N/K, G̃ = ∫τN, with the orthogonal-sub-scale parameter
+τ_e = α_τ h_e²/(2G) per element.  One step (central differences):
+
+1. v^{n+½} = v^{n−½} + Δt M⁻¹ (f_ext − f_int(u^n, p^n) − f_damp),
+   f_int = ∫ Bᵀ(s(u) + p I)
+2. u^{n+1} = u^n + Δt v^{n+½}
+3. p^{n+1} = p^n + M_p⁻¹ [Δt ∫ q div v^{n+½} − ∫ τ ∇q·(∇p^n + π^n)]
+4. π^{n+1} = −G̃⁻¹ ∫ τ N ∇p^{n+1}
+
+Step 4 needs only p^{n+1} and is consumed first by step 3 of the next step, so it
+is evaluated in the same element pass as the next step's f_int (both read
+(u^{n+1}, p^{n+1})): two vector assemblies per step instead of three, same
+arithmetic.  ``formulation="displacement"`` drops p and π and uses
+f_int = ∫ Bᵀ(s(u) + K div u I): the standard P1 element, which locks as ν → ½.
+
+h_e is the smallest altitude of tetrahedron e (3 V_e / largest face area), used both
+for τ_e and for the time step Δt = f_s min_e h_e / c_p,e, c_p = √((K + 4G/3)/ρ).
+
+Stability of step 3 (measured; ``tests/fe/test_stabilisation.py`` re-checks it).
+The τ-term of step 3 is an explicit diffusion of p with no Δt in front: a pressure
+mode is multiplied each step by 1 − α_τ (K/2G) λ, λ = O(1) a mesh eigenvalue of
+h_e² M_p⁻¹-scaled ∫∇q·∇p, so it is stable only while α_τ K/G ≤ C, independent of
+Δt and ρ.  Sweeps on the gmsh block (``meshes/block.geo``, unit cube, mesh sizes
+0.25 and 0.125, f_s = 0.5, bottom fixed, undamped, 2000 steps from a random
+velocity field) gave:
+
+    ν = 0.3    (K/G = 2.17): stable α_τ ≤ 0.3,     blow-up α_τ ≥ 0.5
+    ν = 0.499  (K/G = 500):  stable α_τ ≤ 0.0012,  blow-up α_τ ≥ 0.0015
+    ν = 0.4999 (K/G = 5000): stable α_τ ≤ 0.00014, blow-up α_τ ≥ 0.0002
+
+so C = (α_τ K/G)_max ≈ 0.6 (``STABILITY_CONSTANT``).  The default
+``DEFAULT_ALPHA_TAU = 6e-4`` is stable for all ν ≤ 0.499 with a margin of 2; for
+ν closer to ½ use ``stable_alpha_tau(nu)`` = ½ C G/K (same margin).
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import dolfinx
+import dolfinx.cpp
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.la import ScatterMode
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from fe_domain import forms
+from fe_domain.boundary import (BodyForce, Fixed, Material, NormalPressure, PrescribedVelocity,
+                                Traction)
+from fe_domain.mesh import TaggedMesh
+
+#: Measured stability constant of step 3: stable while α_τ K/G ≤ STABILITY_CONSTANT.
+STABILITY_CONSTANT = 0.6
+#: Default α_τ: stable up to ν = 0.499 (K/G ≈ 500) with a margin of 2.
+DEFAULT_ALPHA_TAU = 6e-4
+
+
+def stable_alpha_tau(nu: float, margin: float = 0.5) -> float:
+    """α_τ = margin · C · G/K for Poisson ratio ν (C = STABILITY_CONSTANT)."""
+    g_over_k = 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu))
+    return margin * STABILITY_CONSTANT * g_over_k
+
+
+class ExplicitSolid:
+    """Explicit mixed u–p (or pure-displacement) P1 solid; see the module docstring.
+
+    Node arrays use the local (owned then ghost) P1 node numbering of DOLFINx and
+    have shape (n_nodes, 3) or (n_nodes,); the first ``n_owned_nodes`` are owned.
+    """
+
+    def __init__(self, tagged_mesh: TaggedMesh, material: Material | Mapping[str, Material], *,
+                 boundary_conditions: Sequence[Fixed | PrescribedVelocity] = (),
+                 loads: Sequence[Traction | NormalPressure | BodyForce] = (),
+                 damping=None, formulation: str = "mixed",
+                 alpha_tau: float = DEFAULT_ALPHA_TAU, safety_factor: float = 0.5,
+                 dt: float | None = None):
+        if formulation not in ("mixed", "displacement"):
+            raise ValueError(f"formulation = {formulation!r}: must be 'mixed' or 'displacement'")
+        if not 0 < safety_factor <= 1:
+            raise ValueError(f"safety_factor = {safety_factor!r}: must lie in (0, 1]")
+        if formulation == "mixed" and not alpha_tau >= 0:
+            raise ValueError(f"alpha_tau = {alpha_tau!r}: must be >= 0")
+        self.tagged_mesh = tagged_mesh
+        self.mesh = mesh = tagged_mesh.mesh
+        self.comm = mesh.comm
+        self.mixed = formulation == "mixed"
+        self.damping = damping
+        self.time = 0.0
+        self.step_count = 0
+
+        # Spaces: P1 vector (u, v, π), P1 scalar (p), 6-component P1 (pass A test), DG0.
+        self.V = fem.VectorFunctionSpace(mesh, ("CG", 1))
+        self.Q = fem.FunctionSpace(mesh, ("CG", 1))
+        self.Z = fem.VectorFunctionSpace(mesh, ("CG", 1), dim=6)
+        self.Z2 = fem.VectorFunctionSpace(mesh, ("CG", 1), dim=2)
+        self.D0 = fem.FunctionSpace(mesh, ("DG", 0))
+        cell_nodes = self.Q.dofmap.list.array.reshape(-1, 4)
+        for space in (self.V, self.Z, self.Z2):
+            if not np.array_equal(space.dofmap.list.array.reshape(-1, 4), cell_nodes):
+                raise RuntimeError("P1 spaces do not share one node numbering")
+        index_map = self.Q.dofmap.index_map
+        self.n_owned_nodes = index_map.size_local
+        self.n_nodes = index_map.size_local + index_map.num_ghosts
+
+        self._setup_geometry(cell_nodes)
+        self._setup_material(material, alpha_tau)
+
+        self.u, self.v, self.pi = (fem.Function(self.V, name=n) for n in ("u", "v", "pi"))
+        self.p = fem.Function(self.Q, name="p")
+        self.displacement = self.u.x.array.reshape(-1, 3)
+        self.velocity = self.v.x.array.reshape(-1, 3)
+        self.pressure = self.p.x.array
+        self.projected_pressure_gradient = self.pi.x.array.reshape(-1, 3)
+        #: External nodal forces (N), e.g. the DEM interface forces; persists until changed.
+        #: Values on ghost nodes are added to their owners each step: give each force once.
+        self.external_force = np.zeros((self.n_nodes, 3))
+
+        self.mass = np.repeat(self._lumped(forms.lumped_mass(ufl.TestFunction(self.Q), self.rho)), 3)
+        cp = np.sqrt((self._K_cells + 4.0 * self._G_cells / 3.0) / self._rho_cells)
+        self.dt_critical = self.comm.allreduce(float(np.min(self.h_cells / cp)), op=MPI.MIN)
+        self._dt_constant = fem.Constant(mesh, PETSc.ScalarType(0.0))
+
+        z, q = ufl.TestFunction(self.Z if self.mixed else self.V), ufl.TestFunction(self.Q)
+        if self.mixed:
+            self.pressure_mass = self._lumped(forms.lumped_pressure_mass(q, self.K))
+            self.projection_mass = self._lumped(forms.lumped_projection_mass(q, self.tau))
+            self._pass_a = fem.form(forms.internal_force_and_projection(z, self.u, self.p, self.G, self.tau))
+            self._pass_b = fem.form(forms.pressure_increment(ufl.TestFunction(self.Z2), self.v, self.p,
+                                                             self.pi, self.tau, self._dt_constant))
+            self._pass_b_vector = dolfinx.la.vector(index_map, 2)
+            self._pass_b_nodal = self._pass_b_vector.array.reshape(self.n_nodes, 2)
+            self._strain_energy = fem.form(forms.deviatoric_strain_energy(self.u, self.G))
+        else:
+            self._pass_a = fem.form(forms.internal_force_displacement(z, self.u, self.G, self.K))
+            self._strain_energy = fem.form(forms.deviatoric_strain_energy(self.u, self.G)
+                                           + forms.volumetric_strain_energy(self.u, self.K))
+        self._pass_a_vector = dolfinx.la.vector(index_map, 6 if self.mixed else 3)
+        self._pass_a_nodal = self._pass_a_vector.array.reshape(self.n_nodes, -1)
+        self._external_vector = dolfinx.la.vector(index_map, 3)
+        self._constants_a = dolfinx.cpp.fem.pack_constants(self._pass_a)
+        self.dt = safety_factor * self.dt_critical if dt is None else dt
+
+        self._setup_boundary_conditions(boundary_conditions)
+        self._setup_loads(loads)
+
+        # Energy bookkeeping (local sums over owned nodes; reduced when recorded).
+        #: Record energies every ``energy_interval`` steps (0: never) into ``energy_history``.
+        self.energy_interval = 0
+        self.energy_history: list[dict] = []
+        self._external_work = 0.0
+        self._damping_work = 0.0
+        self._stabilisation_dissipation = 0.0
+        self.unbalanced_force = np.zeros((self.n_nodes, 3))
+        self._damping_force = np.zeros((self.n_nodes, 3))
+        self._velocity_change = np.zeros((self.n_nodes, 3))
+
+    @property
+    def dt(self) -> float:
+        """Time step Δt (s); settable (e.g. by a coupling that subcycles)."""
+        return self._dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        if not 0 < value <= self.dt_critical:
+            raise ValueError(f"dt = {value!r}: must lie in (0, dt_critical = {self.dt_critical:.4g}] s")
+        self._dt = float(value)
+        self._dt_constant.value = self._dt
+        if self.mixed:
+            self._constants_b = dolfinx.cpp.fem.pack_constants(self._pass_b)
+
+    # ------------------------------------------------------------------ setup
+    def _setup_geometry(self, cell_nodes):
+        """Node coordinates, vertex→node map and the element size h_e (smallest altitude)."""
+        mesh = self.mesh
+        tdim = mesh.topology.dim
+        geometry_nodes = mesh.geometry.dofmap.array.reshape(-1, 4)
+        self.node_coordinates = np.empty((self.n_nodes, 3))
+        self.node_coordinates[cell_nodes] = mesh.geometry.x[geometry_nodes]
+        self.input_node_index = np.empty(self.n_nodes, dtype=np.int64)
+        self.input_node_index[cell_nodes] = np.asarray(mesh.geometry.input_global_indices)[geometry_nodes]
+        self.global_node_index = np.asarray(
+            self.Q.dofmap.index_map.local_to_global(np.arange(self.n_nodes, dtype=np.int32)))
+        mesh.topology.create_connectivity(tdim, 0)
+        mesh.topology.create_connectivity(tdim - 1, 0)
+        mesh.topology.create_connectivity(tdim - 1, tdim)
+        cell_vertices = mesh.topology.connectivity(tdim, 0).array.reshape(-1, 4)
+        self._node_of_vertex = np.empty(mesh.topology.index_map(0).size_local
+                                        + mesh.topology.index_map(0).num_ghosts, dtype=np.int32)
+        self._node_of_vertex[cell_vertices] = cell_nodes
+
+        x = self.node_coordinates[cell_nodes]                      # (cells, 4, 3)
+        edges = x[:, 1:] - x[:, :1]
+        volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
+        faces = [(1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2)]
+        face_area = np.stack([0.5 * np.linalg.norm(np.cross(x[:, b] - x[:, a], x[:, c] - x[:, a]), axis=1)
+                              for a, b, c in faces], axis=1)
+        self.h_cells = 3.0 * volume / face_area.max(axis=1)
+
+    def _setup_material(self, material, alpha_tau):
+        """DG0 fields G, K, ρ from one Material or a {cell group name: Material} map; τ_e."""
+        n_cells = len(self.h_cells)
+        materials = {None: material} if isinstance(material, Material) else dict(material)
+        G, K, rho = (np.full(n_cells, np.nan) for _ in range(3))
+        for name, mat in materials.items():
+            cells = slice(None) if name is None else self.tagged_mesh.cells(name)
+            G[cells], K[cells], rho[cells] = mat.shear_modulus, mat.bulk_modulus, mat.rho
+        if np.isnan(G).any():
+            missing = sorted(set(self.tagged_mesh.names(3)) - set(materials))
+            raise ValueError(f"material: cells without a material; cell groups not given: {missing}")
+        self._G_cells, self._K_cells, self._rho_cells = G, K, rho
+        self.alpha_tau = alpha_tau if self.mixed else 0.0
+        tau = self.alpha_tau * self.h_cells ** 2 / (2.0 * G)
+        cell_dofs = self.D0.dofmap.list.array
+        self.G, self.K, self.rho, self.tau = (fem.Function(self.D0, name=n) for n in ("G", "K", "rho", "tau"))
+        for fn, values in ((self.G, G), (self.K, K), (self.rho, rho), (self.tau, tau)):
+            fn.x.array[cell_dofs] = values
+
+    def _setup_boundary_conditions(self, conditions):
+        fixed, prescribed = [], []
+        for bc in conditions:
+            nodes = self.boundary_nodes(bc.boundary)
+            if isinstance(bc, Fixed):
+                fixed.extend(3 * nodes + c for c in bc.components)
+            elif isinstance(bc, PrescribedVelocity):
+                comps = [c for c, value in enumerate(bc.velocity) if value is not None]
+                values = np.array([bc.velocity[c] for c in comps], dtype=float)
+                prescribed.append((np.concatenate([3 * nodes + c for c in comps]),
+                                   np.repeat(values, len(nodes)), bc.amplitude))
+            else:
+                raise TypeError(f"boundary condition {bc!r}: not Fixed or PrescribedVelocity")
+        self._fixed_dofs = np.unique(np.concatenate(fixed)).astype(np.int64) if fixed else np.empty(0, np.int64)
+        self._prescribed = prescribed
+
+    def _setup_loads(self, loads):
+        """Assemble each load once into a nodal vector; f_ext(t) = Σ amplitude_i(t) F_i."""
+        w = ufl.TestFunction(self.V)
+        ds = ufl.Measure("ds", domain=self.mesh, subdomain_data=self.tagged_mesh.facet_tags)
+        self._loads = []
+        for load in loads:
+            if isinstance(load, BodyForce):
+                form = forms.body_force_load(w, self.rho, self._constant(load.acceleration))
+            elif isinstance(load, Traction):
+                tag = self.tagged_mesh._tag(load.boundary, 2)
+                form = forms.traction_load(w, self._constant(load.traction), ds(tag))
+            elif isinstance(load, NormalPressure):
+                tag = self.tagged_mesh._tag(load.boundary, 2)
+                form = forms.normal_pressure_load(w, self._constant(load.pressure), ds(tag),
+                                                  ufl.FacetNormal(self.mesh))
+            else:
+                raise TypeError(f"load {load!r}: not Traction, NormalPressure or BodyForce")
+            vector = dolfinx.la.vector(self.V.dofmap.index_map, 3)
+            self._assemble(vector, fem.form(form))
+            self._loads.append((vector.array.reshape(-1, 3).copy(), load.amplitude))
+
+    def _constant(self, value):
+        return fem.Constant(self.mesh, PETSc.ScalarType(value) if np.ndim(value) == 0
+                            else np.asarray(value, dtype=PETSc.ScalarType))
+
+    def _lumped(self, integrand) -> np.ndarray:
+        vector = dolfinx.la.vector(self.Q.dofmap.index_map, 1)
+        self._assemble(vector, fem.form(integrand))
+        return vector.array.copy()
+
+    @staticmethod
+    def _assemble(vector, form, constants=None):
+        """Assemble ``form`` into a preallocated la.Vector, then ghost updates (reverse add, forward)."""
+        vector.array[:] = 0.0
+        if constants is None:
+            constants = dolfinx.cpp.fem.pack_constants(form)
+        dolfinx.cpp.fem.assemble_vector(vector.array, form, constants,
+                                        dolfinx.cpp.fem.pack_coefficients(form))
+        vector.scatter_reverse(ScatterMode.add)
+        vector.scatter_forward()
+
+    # ------------------------------------------------------------------ stepping
+    def external_load(self, t: float) -> np.ndarray:
+        """f_ext(t) from the boundary/body loads (without ``external_force``)."""
+        total = np.zeros((self.n_nodes, 3))
+        for vector, amplitude in self._loads:
+            total += amplitude(t) * vector
+        return total
+
+    def step(self) -> None:
+        """Advance one time step, DESIGN §4 steps 1–4 (step 4 fused with the next step 1)."""
+        dt = self.dt
+        # Step 1 (and step 4 for p^n): one element pass over (u^n, p^n).
+        self._assemble(self._pass_a_vector, self._pass_a, self._constants_a)
+        if self.mixed and self.alpha_tau > 0:
+            self.projected_pressure_gradient[:] = -self._pass_a_nodal[:, 3:] / self.projection_mass[:, None]
+        self._external_vector.array[:] = self.external_force.ravel()
+        self._external_vector.scatter_reverse(ScatterMode.add)
+        self._external_vector.scatter_forward()
+        f_ext = self.external_load(self.time) + self._external_vector.array.reshape(-1, 3)
+        np.subtract(f_ext, self._pass_a_nodal[:, :3], out=self.unbalanced_force)
+        velocity = self.velocity
+        f_damp = self._damping_force
+        if self.damping is not None:
+            f_damp[:] = self.damping.force(self.unbalanced_force, velocity, self.mass.reshape(-1, 3))
+        velocity_old = velocity.copy()
+        velocity += dt * (self.unbalanced_force - f_damp) / self.mass.reshape(-1, 3)
+        flat = self.v.x.array
+        flat[self._fixed_dofs] = 0.0
+        t_half = self.time + 0.5 * dt
+        for dofs, values, amplitude in self._prescribed:
+            flat[dofs] = amplitude(t_half) * values
+        np.subtract(velocity, velocity_old, out=self._velocity_change)
+        if self.energy_due():
+            self._record_energies(velocity_old)
+        # Step 2.
+        increment = dt * velocity
+        owned = slice(0, self.n_owned_nodes)
+        self._external_work += float(np.vdot(f_ext[owned], increment[owned]))
+        if self.damping is not None:
+            self._damping_work += float(np.vdot(f_damp[owned], increment[owned]))
+        self.displacement += increment
+        # Step 3.
+        if self.mixed:
+            self._assemble(self._pass_b_vector, self._pass_b, self._constants_b)
+            volumetric, stabilisation = self._pass_b_nodal[:, 0], self._pass_b_nodal[:, 1]
+            pressure_change = (volumetric - stabilisation) / self.pressure_mass
+            mid_pressure = self.pressure[owned] + 0.5 * pressure_change[owned]
+            self._stabilisation_dissipation += float(np.vdot(mid_pressure, stabilisation[owned]))
+            self.pressure += pressure_change
+        self.time += dt
+        self.step_count += 1
+
+    def run(self, n_steps: int, callback=None) -> None:
+        """``n_steps`` steps; ``callback(solver)`` after each (outputs, coupling)."""
+        for _ in range(n_steps):
+            self.step()
+            if callback is not None:
+                callback(self)
+
+    # ------------------------------------------------------------------ energies
+    def energy_due(self) -> bool:
+        return self.energy_interval > 0 and self.step_count % self.energy_interval == 0
+
+    def _record_energies(self, velocity_old):
+        """Energies at t^n, appended to ``energy_history``.
+
+        kinetic ½ Σ M |v^n|², v^n = (v^{n−½} + v^{n+½})/2; strain ∫ G dev ε:dev ε + ½ Σ M_p p²
+        (mixed) or + ∫ K/2 (div u)² (displacement); external and damping work Σ f·Δu;
+        stabilisation: the pressure energy removed by step 3's τ-term, Σ p^{n+½}·∫τ∇q·(∇p+π).
+        total = kinetic + strain − external_work + damping_work + stabilisation (constant).
+        """
+        owned = slice(0, self.n_owned_nodes)
+        v_n = 0.5 * (velocity_old[owned] + self.velocity[owned])
+        kinetic = 0.5 * float(np.sum(self.mass.reshape(-1, 3)[owned] * v_n ** 2))
+        strain = fem.assemble_scalar(self._strain_energy)
+        if self.mixed:
+            strain += 0.5 * float(np.sum(self.pressure_mass[owned] * self.pressure[owned] ** 2))
+        local = np.array([kinetic, strain, self._external_work, self._damping_work,
+                          self._stabilisation_dissipation])
+        kinetic, strain, external, damping, stabilisation = self.comm.allreduce(local, op=MPI.SUM)
+        self.energy_history.append({"time": self.time, "step": self.step_count, "kinetic": kinetic,
+                                    "strain": strain, "external_work": external,
+                                    "damping_work": damping, "stabilisation": stabilisation,
+                                    "total": kinetic + strain - external + damping + stabilisation})
+
+    # ------------------------------------------------------------------ boundaries
+    def boundary_nodes(self, name: str) -> np.ndarray:
+        """Local node indices (owned and ghost) on the facets of group ``name``."""
+        facets = self.tagged_mesh.facets(name)
+        return fem.locate_dofs_topological(self.Q, self.mesh.topology.dim - 1, facets).astype(np.int64)
+
+    def facet_triangles(self, name: str) -> np.ndarray:
+        """(n_facets, 3) local node indices of the facets of group ``name`` owned by this rank.
+
+        Each facet is reported by exactly one rank; vertex positions are
+        ``node_coordinates + displacement`` at those indices.
+        """
+        tdim = self.mesh.topology.dim
+        facets = self.tagged_mesh.facets(name)
+        facets = facets[facets < self.mesh.topology.index_map(tdim - 1).size_local]
+        facet_vertices = self.mesh.topology.connectivity(tdim - 1, 0).array.reshape(-1, 3)
+        return self._node_of_vertex[facet_vertices[facets]]
+
+    def reaction(self, name: str) -> np.ndarray:
+        """Total force (N) the supports of group ``name`` exert on the body, at the last step.
+
+        R = M a − (f_ext − f_int − f_damp) summed over the group's owned nodes.
+        """
+        nodes = self.boundary_nodes(name)
+        nodes = nodes[nodes < self.n_owned_nodes]
+        inertia = self.mass.reshape(-1, 3)[nodes] * self._velocity_change[nodes] / self.dt
+        local = np.sum(inertia - self.unbalanced_force[nodes] + self._damping_force[nodes], axis=0)
+        return self.comm.allreduce(local, op=MPI.SUM)

@@ -1,0 +1,167 @@
+"""gmsh → DOLFINx meshes with cell and facet tags addressed by physical-group name.
+
+A geometry is a gmsh ``.geo`` source in ``meshes/`` (or an already meshed ``.msh``
+file).  Rank 0 of the communicator builds or reads the gmsh model, generates the
+3D tetrahedral mesh with the requested size, and ``dolfinx.io.gmshio.model_to_mesh``
+distributes it (DESIGN §1: meshes/*.geo → gmsh → dolfinx mesh + facet tags).
+Physical-group names are broadcast with the mesh so that case files can say
+``facets("interface")`` and never use raw tag numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import gmsh
+import meshio
+import numpy as np
+from dolfinx.io import gmshio
+from dolfinx.mesh import Mesh, MeshTagsMetaClass
+from mpi4py import MPI
+
+MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
+
+
+@dataclass
+class TaggedMesh:
+    """A distributed tetrahedral mesh with its named physical groups.
+
+    ``cell_tags`` and ``facet_tags`` hold the gmsh physical tag numbers of the local
+    (owned and ghost) entities; ``groups`` maps each physical-group name to
+    ``(dim, tag)``.
+    """
+
+    mesh: Mesh
+    cell_tags: MeshTagsMetaClass
+    facet_tags: MeshTagsMetaClass
+    groups: dict[str, tuple[int, int]]
+
+    def _tag(self, name: str, dim: int) -> int:
+        if name not in self.groups:
+            raise KeyError(f"physical group {name!r} not in mesh; available: {sorted(self.groups)}")
+        group_dim, tag = self.groups[name]
+        if group_dim != dim:
+            raise KeyError(f"physical group {name!r} has dimension {group_dim}, expected {dim}")
+        return tag
+
+    def facets(self, name: str) -> np.ndarray:
+        """Local indices of the facets in the 2D physical group ``name``."""
+        tag = self._tag(name, self.mesh.topology.dim - 1)
+        return self.facet_tags.indices[self.facet_tags.values == tag]
+
+    def cells(self, name: str) -> np.ndarray:
+        """Local indices of the cells in the 3D physical group ``name``."""
+        tag = self._tag(name, self.mesh.topology.dim)
+        return self.cell_tags.indices[self.cell_tags.values == tag]
+
+    def names(self, dim: int) -> list[str]:
+        """Names of the physical groups of dimension ``dim``."""
+        return sorted(n for n, (d, _) in self.groups.items() if d == dim)
+
+
+def _model_to_tagged_mesh(comm: MPI.Comm, rank: int) -> TaggedMesh:
+    """Distribute the current gmsh model (alive on ``rank``) into a TaggedMesh."""
+    groups = None
+    if comm.rank == rank:
+        groups = {gmsh.model.getPhysicalName(dim, tag): (dim, tag)
+                  for dim, tag in gmsh.model.getPhysicalGroups()}
+        if not any(dim == 3 for dim, _ in groups.values()):
+            raise ValueError("the gmsh model has no 3D physical group: cells outside "
+                             "physical groups are dropped, so tag the volume(s)")
+    groups = comm.bcast(groups, root=rank)
+    mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
+    return TaggedMesh(mesh, cell_tags, facet_tags, groups)
+
+
+def load_geo(path: str | Path, mesh_size: float, comm: MPI.Comm = MPI.COMM_WORLD,
+             parameters: dict[str, float] | None = None, rank: int = 0) -> TaggedMesh:
+    """Mesh a gmsh ``.geo`` source with tetrahedra of size ``mesh_size`` (m).
+
+    ``parameters`` override the ``DefineConstant`` values of the source (gmsh ONELAB
+    names ``"Parameters/<name>"``), e.g. ``{"L": 2.0}``.  A bare name is looked up
+    in ``meshes/``.
+    """
+    path = _resolve(path, ".geo")
+    if comm.rank == rank:
+        gmsh.initialize()
+        _generate(path, mesh_size, parameters)
+    try:
+        return _model_to_tagged_mesh(comm, rank)
+    finally:
+        if comm.rank == rank:
+            gmsh.finalize()
+
+
+def load_msh(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, rank: int = 0) -> TaggedMesh:
+    """Read a gmsh ``.msh`` file (with physical groups) and distribute it."""
+    path = _resolve(path, ".msh")
+    if comm.rank == rank:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.merge(str(path))
+    try:
+        return _model_to_tagged_mesh(comm, rank)
+    finally:
+        if comm.rank == rank:
+            gmsh.finalize()
+
+
+def load_mesh(path: str | Path, mesh_size: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
+              parameters: dict[str, float] | None = None) -> TaggedMesh:
+    """Load ``.geo`` (meshed with ``mesh_size``, required) or ``.msh`` by suffix."""
+    suffix = Path(path).suffix or ".geo"
+    if suffix == ".msh":
+        return load_msh(path, comm)
+    if suffix == ".geo":
+        if mesh_size is None or mesh_size <= 0:
+            raise ValueError(f"mesh_size = {mesh_size!r}: a .geo source needs a mesh size > 0 (m)")
+        return load_geo(path, mesh_size, comm, parameters)
+    raise ValueError(f"mesh file {str(path)!r}: suffix {suffix!r} not one of '.geo', '.msh'")
+
+
+def write_msh(geo_path: str | Path, msh_path: str | Path, mesh_size: float,
+              parameters: dict[str, float] | None = None) -> Path:
+    """Mesh a ``.geo`` source and save it as ``.msh`` (serial; for reuse or inspection)."""
+    gmsh.initialize()
+    try:
+        _generate(_resolve(geo_path, ".geo"), mesh_size, parameters)
+        gmsh.write(str(msh_path))
+    finally:
+        gmsh.finalize()
+    return Path(msh_path)
+
+
+def msh_to_vtu(msh_path: str | Path, out_path: str | Path) -> Path:
+    """Convert a ``.msh`` to a VTU (tetrahedra + ``gmsh:physical`` cell data) with meshio."""
+    src = meshio.read(msh_path)
+    tets = [(i, block) for i, block in enumerate(src.cells) if block.type == "tetra"]
+    physical = src.cell_data.get("gmsh:physical")
+    cell_data = {"gmsh:physical": [physical[i] for i, _ in tets]} if physical else {}
+    meshio.write(out_path, meshio.Mesh(src.points, [b for _, b in tets], cell_data=cell_data))
+    return Path(out_path)
+
+
+def _generate(path: Path, mesh_size: float, parameters: dict[str, float] | None) -> None:
+    """Open ``path`` in the (initialised) gmsh session and mesh it in 3D."""
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.onelab.clear()  # ONELAB values outlive gmsh.finalize(): drop the last file's
+    for name, value in (parameters or {}).items():
+        gmsh.onelab.setNumber(f"Parameters/{name}", [float(value)])
+    gmsh.open(str(path))
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
+    gmsh.model.mesh.generate(3)
+
+
+def _resolve(path: str | Path, suffix: str) -> Path:
+    path = Path(path)
+    if not path.suffix:
+        path = path.with_suffix(suffix)
+    if not path.exists() and (MESH_DIR / path).exists():
+        path = MESH_DIR / path
+    if not path.exists():
+        raise FileNotFoundError(f"mesh source {str(path)!r} not found (also looked in {MESH_DIR})")
+    return path

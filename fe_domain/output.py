@@ -1,0 +1,112 @@
+"""Outputs of the FE solid: XDMF fields for ParaView, energy and reaction CSV files.
+
+Fields written: displacement u, velocity v, mean stress p (P1, at nodes) and the
+von Mises stress √(3/2 s:s) of s = 2G dev ε(u) (DG0, one value per cell).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from dolfinx import fem
+from dolfinx.io import XDMFFile
+from mpi4py import MPI
+
+from fe_domain import forms
+
+ENERGY_COLUMNS = ("time", "step", "kinetic", "strain", "external_work", "damping_work",
+                  "stabilisation", "total")
+
+
+class FieldWriter:
+    """u, v, p and von Mises stress to one XDMF time series (``path``.xdmf + .h5)."""
+
+    def __init__(self, solver, path: str | Path):
+        self.solver = solver
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self.file = XDMFFile(solver.comm, str(Path(path).with_suffix(".xdmf")), "w")
+        self.file.write_mesh(solver.mesh)
+        self.von_mises = fem.Function(solver.D0, name="von_mises")
+        self._von_mises_expr = fem.Expression(forms.von_mises(solver.u, solver.G),
+                                              solver.D0.element.interpolation_points())
+
+    def write(self) -> None:
+        """Append the current state at t = solver.time."""
+        self.von_mises.interpolate(self._von_mises_expr)
+        t = self.solver.time
+        for field in (self.solver.u, self.solver.v, self.solver.p, self.von_mises):
+            self.file.write_function(field, t)
+
+    def close(self) -> None:
+        self.file.close()
+
+
+def write_energies_csv(solver, path: str | Path) -> None:
+    """``solver.energy_history`` (recorded every ``energy_interval`` steps) as CSV (rank 0)."""
+    if solver.comm.rank != 0:
+        return
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=ENERGY_COLUMNS)
+        writer.writeheader()
+        writer.writerows(solver.energy_history)
+
+
+class ReactionLog:
+    """Reaction force (N) of each named support group per call of ``record()``, to CSV."""
+
+    def __init__(self, solver, boundaries: list[str]):
+        self.solver = solver
+        self.boundaries = list(boundaries)
+        self.rows: list[list[float]] = []
+
+    def record(self) -> None:
+        row = [self.solver.time]
+        for name in self.boundaries:
+            row.extend(self.solver.reaction(name))
+        self.rows.append(row)
+
+    def write_csv(self, path: str | Path) -> None:
+        if self.solver.comm.rank != 0:
+            return
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        header = ["time"] + [f"{name}_{c}" for name in self.boundaries for c in "xyz"]
+        with open(path, "w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(header)
+            writer.writerows(self.rows)
+
+
+class Recorder:
+    """Step callback: fields every ``field_interval`` steps, reactions every
+    ``reaction_interval``; energies are recorded by the solver every ``energy_interval``.
+    ``close()`` writes ``energies.csv`` and ``reactions.csv`` into ``out_dir``."""
+
+    def __init__(self, solver, out_dir: str | Path, field_interval: int = 0,
+                 energy_interval: int = 0, reaction_boundaries: tuple[str, ...] = (),
+                 reaction_interval: int = 1):
+        self.solver = solver
+        self.out_dir = Path(out_dir)
+        self.field_interval = field_interval
+        self.reaction_interval = reaction_interval
+        solver.energy_interval = energy_interval
+        self.fields = FieldWriter(solver, self.out_dir / "fields") if field_interval > 0 else None
+        self.reactions = ReactionLog(solver, list(reaction_boundaries)) if reaction_boundaries else None
+        if self.fields is not None:
+            self.fields.write()
+
+    def __call__(self, solver) -> None:
+        n = solver.step_count
+        if self.fields is not None and n % self.field_interval == 0:
+            self.fields.write()
+        if self.reactions is not None and n % self.reaction_interval == 0:
+            self.reactions.record()
+
+    def close(self) -> None:
+        if self.fields is not None:
+            self.fields.close()
+        write_energies_csv(self.solver, self.out_dir / "energies.csv")
+        if self.reactions is not None:
+            self.reactions.write_csv(self.out_dir / "reactions.csv")
+        self.solver.comm.Barrier()
