@@ -99,15 +99,14 @@ def _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, pa
             i_start[i + 1] = count
 
 
-@njit(cache=True)
 def build_pair_list(pos, radius, n_active, skin, max_cells):
     """Half Verlet list of sphere pairs within r_i + r_j + skin, grouped by i.
 
     Returns (pair_i, pair_j, i_start, grid) with grid the cell-list tuple.
+    (Plain Python orchestration: Numba 0.56 crashes when loading a cached njit
+    function that calls a parallel one.)
     """
-    r_max = 0.0
-    for i in range(n_active):
-        r_max = max(r_max, radius[i])
+    r_max = float(radius[:n_active].max())
     grid = build_cell_grid(pos, n_active, 2.0 * r_max + skin, max_cells)
     lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
     i_start = np.zeros(n_active + 1, dtype=np.int64)
@@ -118,10 +117,7 @@ def build_pair_list(pos, radius, n_active, skin, max_cells):
     pair_j = np.empty(i_start[-1], dtype=np.int32)
     _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
                          n_active, i_start, pair_j, True)
-    pair_i = np.empty(i_start[-1], dtype=np.int32)
-    for i in range(n_active):
-        for p in range(i_start[i], i_start[i + 1]):
-            pair_i[p] = i
+    pair_i = np.repeat(np.arange(n_active, dtype=np.int32), np.diff(i_start))
     return pair_i, pair_j, i_start, grid
 
 
@@ -248,13 +244,10 @@ def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell,
             f_start[i + 1] = count
 
 
-@njit(cache=True)
 def build_facet_list(pos, radius, n_active, skin, vertices, triangles, grid):
     """Sphere–triangle candidates within r + skin, grouped by particle (CSR)."""
     lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
-    r_max = 0.0
-    for i in range(n_active):
-        r_max = max(r_max, radius[i])
+    r_max = float(radius[:n_active].max())
     start, cell_tris = _triangles_per_cell(vertices, triangles, r_max + skin, lo, cell_size, dims)
     f_start = np.zeros(n_active + 1, dtype=np.int64)
     dummy = np.empty(0, dtype=np.int32)
