@@ -1,0 +1,119 @@
+"""FE throughput: cell-steps per second of the explicit mixed u–p solid (DESIGN §4).
+
+    .venv/bin/python benchmarks/fe_throughput.py            # ≈50k and ≈400k tets, 1 and 2 ranks
+    .venv/bin/python benchmarks/fe_throughput.py --sizes 0.05 --ranks 1
+
+The driver meshes the unit block (meshes/block.geo) once per size into
+benchmarks/out/*.msh, then runs itself as a worker under
+``mpirun -n N python benchmarks/fe_throughput.py --worker MSH`` for each rank count.
+A worker times ``ExplicitSolid.step()`` (bottom fixed, top traction) and the floor:
+one bare DOLFINx assembly of the internal force ∫ Bᵀ(s(u) + p I) (step 1 alone)
+into a preallocated array plus its reverse ghost scatter, on the same mesh.  A
+mixed step needs two dependent element passes (step 1 + 4 fused, then step 3), so
+its cost is ≈ 2 floors; the displacement-only P1 step (one pass) is listed too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "benchmarks" / "out"
+DEFAULT_SIZES = (0.045, 0.0226)      # ≈ 50k and ≈ 400k tetrahedra in the unit cube
+MIN_SECONDS = 2.0
+
+
+def _time_per_call(function, min_seconds=MIN_SECONDS, min_calls=5):
+    from mpi4py import MPI
+    comm = MPI.COMM_WORLD
+    function()                                   # warm-up
+    calls, start = 0, time.perf_counter()
+    while True:
+        function()
+        calls += 1
+        elapsed = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+        if calls >= min_calls and elapsed >= min_seconds:
+            return elapsed / calls
+
+
+def worker(msh_path: str) -> None:
+    import dolfinx
+    import ufl
+    from dolfinx import fem
+    from mpi4py import MPI
+
+    from fe_domain import forms
+    from fe_domain.boundary import Fixed, Material, Traction
+    from fe_domain.explicit import ExplicitSolid
+    from fe_domain.mesh import load_msh
+
+    comm = MPI.COMM_WORLD
+    tagged = load_msh(msh_path, comm)
+    n_cells = tagged.mesh.topology.index_map(3).size_global
+    result = {"cells": n_cells, "ranks": comm.size}
+    for formulation in ("mixed", "displacement"):
+        solver = ExplicitSolid(tagged, Material(E=1e7, nu=0.3, rho=1000.0), formulation=formulation,
+                               boundary_conditions=[Fixed("bottom")], loads=[Traction("top", (0.0, 0.0, -1e4))])
+        result[formulation] = _time_per_call(solver.step)
+    internal_force = fem.form(ufl.inner(forms.deviatoric_stress(solver.u, solver.G)
+                                        + solver.p * ufl.Identity(3), ufl.grad(ufl.TestFunction(solver.V))) * ufl.dx)
+    vector = dolfinx.la.vector(solver.V.dofmap.index_map, 3)
+
+    def floor():
+        vector.array[:] = 0.0
+        fem.assemble_vector(vector.array, internal_force)
+        vector.scatter_reverse(dolfinx.la.ScatterMode.add)
+
+    result["floor"] = _time_per_call(floor)
+    if comm.rank == 0:
+        print("RESULT " + json.dumps(result), flush=True)
+
+
+def mesh_file(size: float) -> Path:
+    from fe_domain.mesh import write_msh
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"block_h{size:g}.msh"
+    if not path.exists():
+        write_msh("block", path, size)
+    return path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sizes", type=float, nargs="+", default=DEFAULT_SIZES, help="mesh sizes (m)")
+    parser.add_argument("--ranks", type=int, nargs="+", default=(1, 2), help="MPI rank counts")
+    parser.add_argument("--worker", metavar="MSH", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.worker:
+        worker(args.worker)
+        return
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    rows = []
+    for size in args.sizes:
+        path = mesh_file(size)
+        for ranks in args.ranks:
+            command = ["mpirun", "-n", str(ranks), sys.executable, __file__, "--worker", str(path)]
+            output = subprocess.run(command, env=env, cwd=ROOT, check=True, capture_output=True, text=True).stdout
+            rows.append(json.loads(next(l for l in output.splitlines() if l.startswith("RESULT "))[7:]))
+            print(f"  done: h = {size:g} m, {ranks} rank(s)", file=sys.stderr, flush=True)
+    header = (f"{'cells':>8} {'ranks':>5} | {'mixed step':>10} {'cell-steps/s':>13} {'/floor':>6} | "
+              f"{'displ. step':>11} {'cell-steps/s':>13} {'/floor':>6} | {'floor':>8}")
+    print("Explicit FE step time (ms) and throughput; floor = one bare DOLFINx assembly of f_int")
+    print(header)
+    print("-" * len(header))
+    for r in rows:
+        print(f"{r['cells']:>8} {r['ranks']:>5} | {1e3 * r['mixed']:>10.2f} {r['cells'] / r['mixed']:>13.3e} "
+              f"{r['mixed'] / r['floor']:>6.2f} | {1e3 * r['displacement']:>11.2f} "
+              f"{r['cells'] / r['displacement']:>13.3e} {r['displacement'] / r['floor']:>6.2f} | "
+              f"{1e3 * r['floor']:>8.2f}")
+
+
+if __name__ == "__main__":
+    main()
