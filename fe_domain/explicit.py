@@ -122,6 +122,7 @@ class ExplicitSolid:
         self.external_force = np.zeros((self.n_nodes, 3))
 
         self.mass = np.repeat(self._lumped(forms.lumped_mass(ufl.TestFunction(self.Q), self.rho)), 3)
+        self._inverse_mass = 1.0 / self.mass.reshape(-1, 3)
         cp = np.sqrt((self._K_cells + 4.0 * self._G_cells / 3.0) / self._rho_cells)
         self.dt_critical = self.comm.allreduce(float(np.min(self.h_cells / cp)), op=MPI.MIN)
         self._dt_constant = fem.Constant(mesh, PETSc.ScalarType(0.0))
@@ -130,6 +131,9 @@ class ExplicitSolid:
         if self.mixed:
             self.pressure_mass = self._lumped(forms.lumped_pressure_mass(q, self.K))
             self.projection_mass = self._lumped(forms.lumped_projection_mass(q, self.tau))
+            self._inverse_pressure_mass = 1.0 / self.pressure_mass
+            with np.errstate(divide="ignore"):
+                self._inverse_projection_mass = np.where(self.projection_mass > 0, 1.0 / self.projection_mass, 0.0)
             self._pass_a = fem.form(forms.internal_force_and_projection(z, self.u, self.p, self.G, self.tau))
             self._pass_b = fem.form(forms.pressure_increment(ufl.TestFunction(self.Z2), self.v, self.p,
                                                              self.pi, self.tau, self._dt_constant))
@@ -156,7 +160,8 @@ class ExplicitSolid:
         self._external_work = 0.0
         self._damping_work = 0.0
         self._stabilisation_dissipation = 0.0
-        self.unbalanced_force = np.zeros((self.n_nodes, 3))
+        #: f_ext − f_int − f_damp of the last step (N per node).
+        self.net_force = np.zeros((self.n_nodes, 3))
         self._damping_force = np.zeros((self.n_nodes, 3))
         self._velocity_change = np.zeros((self.n_nodes, 3))
 
@@ -279,31 +284,28 @@ class ExplicitSolid:
         vector.scatter_forward()
 
     # ------------------------------------------------------------------ stepping
-    def external_load(self, t: float) -> np.ndarray:
-        """f_ext(t) from the boundary/body loads (without ``external_force``)."""
-        total = np.zeros((self.n_nodes, 3))
-        for vector, amplitude in self._loads:
-            total += amplitude(t) * vector
-        return total
-
     def step(self) -> None:
         """Advance one time step, DESIGN §4 steps 1–4 (step 4 fused with the next step 1)."""
         dt = self.dt
         # Step 1 (and step 4 for p^n): one element pass over (u^n, p^n).
         self._assemble(self._pass_a_vector, self._pass_a, self._constants_a)
-        if self.mixed and self.alpha_tau > 0:
-            self.projected_pressure_gradient[:] = -self._pass_a_nodal[:, 3:] / self.projection_mass[:, None]
+        if self.mixed:
+            np.multiply(self._pass_a_nodal[:, 3:], -self._inverse_projection_mass[:, None],
+                        out=self.projected_pressure_gradient)
         self._external_vector.array[:] = self.external_force.ravel()
         self._external_vector.scatter_reverse(ScatterMode.add)
         self._external_vector.scatter_forward()
-        f_ext = self.external_load(self.time) + self._external_vector.array.reshape(-1, 3)
-        np.subtract(f_ext, self._pass_a_nodal[:, :3], out=self.unbalanced_force)
+        f_ext = self._external_vector.array.reshape(-1, 3)
+        for vector, amplitude in self._loads:
+            f_ext += amplitude(self.time) * vector
+        np.subtract(f_ext, self._pass_a_nodal[:, :3], out=self.net_force)
         velocity = self.velocity
         f_damp = self._damping_force
         if self.damping is not None:
-            f_damp[:] = self.damping.force(self.unbalanced_force, velocity, self.mass.reshape(-1, 3))
+            f_damp[:] = self.damping.force(self.net_force, velocity, self.mass.reshape(-1, 3))
+            self.net_force -= f_damp
         velocity_old = velocity.copy()
-        velocity += dt * (self.unbalanced_force - f_damp) / self.mass.reshape(-1, 3)
+        velocity += dt * self._inverse_mass * self.net_force
         flat = self.v.x.array
         flat[self._fixed_dofs] = 0.0
         t_half = self.time + 0.5 * dt
@@ -323,7 +325,7 @@ class ExplicitSolid:
         if self.mixed:
             self._assemble(self._pass_b_vector, self._pass_b, self._constants_b)
             volumetric, stabilisation = self._pass_b_nodal[:, 0], self._pass_b_nodal[:, 1]
-            pressure_change = (volumetric - stabilisation) / self.pressure_mass
+            pressure_change = (volumetric - stabilisation) * self._inverse_pressure_mass
             mid_pressure = self.pressure[owned] + 0.5 * pressure_change[owned]
             self._stabilisation_dissipation += float(np.vdot(mid_pressure, stabilisation[owned]))
             self.pressure += pressure_change
@@ -389,5 +391,5 @@ class ExplicitSolid:
         nodes = self.boundary_nodes(name)
         nodes = nodes[nodes < self.n_owned_nodes]
         inertia = self.mass.reshape(-1, 3)[nodes] * self._velocity_change[nodes] / self.dt
-        local = np.sum(inertia - self.unbalanced_force[nodes] + self._damping_force[nodes], axis=0)
+        local = np.sum(inertia - self.net_force[nodes], axis=0)
         return self.comm.allreduce(local, op=MPI.SUM)
