@@ -55,11 +55,14 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
 
 
 @njit(cache=True)
-def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, wrx, wry, wrz,
+def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
                   k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
     """One contact step of DESIGN.md §2.
 
-    Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0.
+    Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0. The
+    dashpot uses the normal relative velocity at tⁿ, v_rn^{n−½} + ``dvn`` with
+    ``dvn`` = ½Δt (a_j − a_i)·n from the last step's accelerations (second order,
+    and its dissipation matches the leapfrog kinetic-energy change).
     Tangential: stored force rotated into the new tangent plane (magnitude kept),
     F_t* = F_t + k_t v_rt Δt, Coulomb radial return |F_t| ≤ μ f_n.
     Rolling: M_r* = M_r + k_r Δθ_r (moment on i, Δθ_r = (ω_j − ω_i)Δt projected on
@@ -72,11 +75,12 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, wrx, wry, wrz
     """
     f_el, k_n, k_t, e_normal = normal_force_and_stiffness(law, overlap, k_linear, r_star, params)
     v_rn = vrx * nx + vry * ny + vrz * nz
+    v_rn_mid = v_rn + dvn
     c_n = 2.0 * params[PAIR_DAMPING_RATIO] * math.sqrt(m_eff * k_n)
-    f_n = f_el - c_n * v_rn
+    f_n = f_el - c_n * v_rn_mid
     if f_n < 0.0:
         f_n = 0.0
-    damping_dissipation = -(f_n - f_el) * v_rn * dt
+    damping_dissipation = -(f_n - f_el) * v_rn_mid * dt
 
     # tangential spring: rotate into the new tangent plane, keep magnitude
     ft_norm_old = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
@@ -106,8 +110,8 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, wrx, wry, wrz
         ftz *= scale
         if ft_max > 0.0:
             friction_dissipation = (ft_trial - ft_max) * ft_max / k_t
-        else:  # normal force clipped to zero: the whole spring is released
-            friction_dissipation = 0.5 * ft_trial * ft_trial / k_t
+        else:  # zero normal force (μ = 0 or f_n clipped): the stored spring is released
+            friction_dissipation = 0.5 * ft_norm_old * ft_norm_old / k_t
     e_tangential = 0.5 * (ft_max * ft_max if ft_trial > ft_max else ft_trial * ft_trial) / k_t
 
     # rolling resistance (elastic–plastic spring)
@@ -142,7 +146,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, wrx, wry, wrz
             if mr_max > 0.0:
                 friction_dissipation += (mr_trial - mr_max) * mr_max / k_r
             else:
-                friction_dissipation += 0.5 * mr_trial * mr_trial / k_r
+                friction_dissipation += 0.5 * mr_norm_old * mr_norm_old / k_r
         e_rolling = 0.5 * mr_final * mr_final / k_r
     else:
         mrx = 0.0

@@ -87,6 +87,7 @@ class Engine:
         n, nw = particles.n, len(self.walls)
         self.wall_history = np.zeros((n, nw, 6))
         self.wall_fn = np.zeros((n, nw))
+        self.acceleration = np.zeros((n, 3))  # last step's (v^{n+½} − v^{n−½})/Δt, for the dashpot
         self._allocate_pair_arrays(0)
         self._energy_reset()
 
@@ -144,7 +145,7 @@ class Engine:
         nl = self.neighbors
         # 3. sphere–sphere contacts, then per-particle sums (this resets force/torque)
         pair_energy = np.zeros(((nl.pair_i.size + PAIR_BLOCK - 1) // PAIR_BLOCK, PAIR_N_ENERGY))
-        sphere_pair_forces(self.law, dt, p.pos, p.vel, p.angvel, p.radius, p.mass, p.material, self.young,
+        sphere_pair_forces(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.material, self.young,
                            self.pair_params, nl.pair_i, nl.pair_j, nl.history, self.pair_force,
                            self.pair_torque_i, self.pair_torque_j, self.pair_overlap, pair_energy)
         sum_pair_forces(p.n_owned, nl.i_start, nl.j_start, nl.j_pairs, self.pair_force, self.pair_torque_i,
@@ -155,7 +156,7 @@ class Engine:
         facet_energy = np.zeros((n_blocks, WALL_N_ENERGY))
         if self.walls:
             wall_force = np.zeros((n_blocks, len(self.walls), 3))
-            plane_wall_contacts(self.law, dt, p.pos, p.vel, p.angvel, p.radius, p.mass, p.material, p.n_owned,
+            plane_wall_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.material, p.n_owned,
                                 self.young, self.pair_params,
                                 np.array([w.point for w in self.walls]), np.array([w.normal for w in self.walls]),
                                 np.array([w.velocity for w in self.walls]),
@@ -165,7 +166,7 @@ class Engine:
             for w, wall in enumerate(self.walls):
                 wall.force = totals[w].copy()
         if self.facets:
-            facet_contacts(self.law, dt, p.pos, p.vel, p.angvel, p.radius, p.mass, p.material, p.n_owned,
+            facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.material, p.n_owned,
                            self.young, self.pair_params, vertices, vertex_vel, self._triangles,
                            self._triangle_edges, self._triangle_material, nl.f_start, nl.f_tri,
                            nl.facet_history, p.force, p.torque, self.facet_force, self.facet_lambda,
@@ -176,7 +177,7 @@ class Engine:
         # 5. gravity, background damping, leapfrog
         integrate_energy = np.zeros(((p.n_owned + INTEGRATE_BLOCK - 1) // INTEGRATE_BLOCK, INTEGRATE_N_ENERGY))
         leapfrog(dt, self.gravity, self.local_damping, self.viscous_damping, p.n_owned, p.pos, p.vel,
-                 p.angvel, p.mass, p.inertia, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
+                 self.acceleration, p.angvel, p.mass, p.inertia, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
                  p.torque, integrate_energy)
         # 6. energy record (sums in block order: deterministic)
         pe = pair_energy.sum(axis=0) if pair_energy.size else np.zeros(PAIR_N_ENERGY)
@@ -330,7 +331,7 @@ class Engine:
         for k, v in self.neighbors.state().items():
             data[f"nl_{k}"] = v
         for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
-                     "pair_overlap", "facet_force", "facet_lambda", "gravity"):
+                     "pair_overlap", "facet_force", "facet_lambda", "gravity", "acceleration"):
             data[name] = getattr(self, name)
         data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
                                    self.time])
@@ -375,7 +376,7 @@ class Engine:
             mesh._engine_vertices = d[f"facet{k}__engine_vertices"].copy()
         engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
         for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
-                     "pair_overlap", "facet_force", "facet_lambda"):
+                     "pair_overlap", "facet_force", "facet_lambda", "acceleration"):
             setattr(engine, name, d[name].copy())
         engine.time = float(time)
         engine.step_count = int(d["step_count"])

@@ -19,9 +19,10 @@ N_ENERGY = 5  # kinetic translational, kinetic rotational, gravity potential, ba
 
 
 @njit(parallel=True, cache=True)
-def leapfrog(dt, gravity, local_damping, viscous_damping, n_owned, pos, vel, angvel, mass, inertia,
+def leapfrog(dt, gravity, local_damping, viscous_damping, n_owned, pos, vel, accel, angvel, mass, inertia,
              blocked, prescribed, prescribed_velocity, force, torque, block_energy):
-    """Advance owned particles one step; adds gravity into ``force``; energies per block."""
+    """Advance owned particles one step; adds gravity into ``force``; stores the
+    translational acceleration (v^{n+½} − v^{n−½})/Δt in ``accel``; energies per block."""
     n_blocks = (n_owned + BLOCK - 1) // BLOCK
     for b in prange(n_blocks):
         ke_t = 0.0
@@ -58,6 +59,7 @@ def leapfrog(dt, gravity, local_damping, viscous_damping, n_owned, pos, vel, ang
                 if d < 3:
                     ke_t += 0.5 * m * v_mid * v_mid
                     potential -= m * gravity[d] * pos[i, d]
+                    accel[i, d] = (v_new - v) / dt
                     vel[i, d] = v_new
                     pos[i, d] += dt * v_new
                 else:

@@ -17,7 +17,7 @@ N_ENERGY = 5  # e_normal, e_tangential, e_rolling, friction, damping
 
 
 @njit(parallel=True, cache=True)
-def sphere_pair_forces(law, dt, pos, vel, angvel, radius, mass, material, young, pair_params,
+def sphere_pair_forces(law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
                        pair_i, pair_j, history, pair_force, pair_torque_i, pair_torque_j, pair_overlap,
                        block_energy):
     """DESIGN.md §2 contact geometry for every listed pair i < j; force on i stored.
@@ -71,7 +71,9 @@ def sphere_pair_forces(law, dt, pos, vel, angvel, radius, mass, material, young,
             k_lin = linear_normal_stiffness(young[material[i]], ri, young[material[j]], rj)
             r_red = ri * rj / (ri + rj)
             m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
-            res = contact_force(law, params, nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz,
+            dvn = 0.5 * dt * ((accel[j, 0] - accel[i, 0]) * nx + (accel[j, 1] - accel[i, 1]) * ny
+                              + (accel[j, 2] - accel[i, 2]) * nz)
+            res = contact_force(law, params, nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz, dvn,
                                 angvel[j, 0] - angvel[i, 0], angvel[j, 1] - angvel[i, 1],
                                 angvel[j, 2] - angvel[i, 2], k_lin, r_red, r_red, m_eff,
                                 h[0], h[1], h[2], h[3], h[4], h[5], dt)

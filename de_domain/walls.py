@@ -148,7 +148,7 @@ def _edge_ids(triangles):
 
 
 @njit(parallel=True, cache=True)
-def plane_wall_contacts(law, dt, pos, vel, angvel, radius, mass, material, n_owned, young, pair_params,
+def plane_wall_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_owned, young, pair_params,
                         wall_point, wall_normal, wall_vel, wall_mat, history, wall_fn,
                         force, torque, block_wall_force, block_energy):
     """Sphere–plane contacts (DESIGN.md §2 geometry with the wall as body j).
@@ -190,8 +190,9 @@ def plane_wall_contacts(law, dt, pos, vel, angvel, radius, mass, material, n_own
                 vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
                 vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
                 vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+                dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
                 res = contact_force(law, params, nx, ny, nz, overlap,
-                                    wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz,
+                                    wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
                                     -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
                                     k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
                 fx, fy, fz = res[0], res[1], res[2]
@@ -249,7 +250,7 @@ def _keep_facet_contact(i, s, tri, feature, pos, radius, vertices, triangles, tr
 
 
 @njit(parallel=True, cache=True)
-def facet_contacts(law, dt, pos, vel, angvel, radius, mass, material, n_owned, young, pair_params,
+def facet_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_owned, young, pair_params,
                    vertices, vertex_vel, triangles, tri_edges, tri_mat, f_start, f_tri, history,
                    force, torque, cand_force, cand_lambda, block_energy):
     """Sphere–triangle contacts (closest point: face, edge or vertex; deduplicated).
@@ -312,7 +313,8 @@ def facet_contacts(law, dt, pos, vel, angvel, radius, mass, material, n_owned, y
                 vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
                 vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
                 vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
-                res = contact_force(law, params, nx, ny, nz, overlap, vfx - vcx, vfy - vcy, vfz - vcz,
+                dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
+                res = contact_force(law, params, nx, ny, nz, overlap, vfx - vcx, vfy - vcy, vfz - vcz, dvn,
                                     -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
                                     k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
                 fx, fy, fz = res[0], res[1], res[2]

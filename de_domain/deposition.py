@@ -1,0 +1,401 @@
+"""Specimen generation to a target void ratio (DESIGN.md §3).
+
+Two methods, both in a square box of side ``L`` and final height ``H`` with frictionless
+side walls, a rough bottom and a rough compaction plate on top:
+
+* :func:`under_compaction` — multi-layer under-compaction (Jiang, Konrad & Leroueil
+  2003; thesis §4.2.1): the solid volume V_s = L² H / (1 + e) is split into N layers
+  of equal solid volume. Each layer is generated as a non-overlapping cloud just above
+  the current surface, falls under gravity and is pushed down by the plate until the
+  layer top reaches
+
+      z_k = (H / N) [ (k − 1) + (1 + U_k) ],   U_k = U_1 (N − k) / (N − 1),
+
+  i.e. lower layers are left slightly looser ("under-compacted", U_1 > 0) because the
+  layers above compact them further; the last layer is pushed to exactly H. The plate
+  then holds its height until the unbalanced force ratio is below 0.01 and the next
+  layer starts. The number of layers follows from the target: a cloud may hold at most
+  ``cloud_solid_fraction`` of solids over a generation height H, so
+  N = ⌈V_s / (cloud_solid_fraction · L² H)⌉ = ⌈1 / ((1 + e) cloud_solid_fraction)⌉,
+  capped so that a layer is at least two of the largest grains thick.
+  If the plate stress exceeds ``plate_stress_limit`` before the plate reaches z_k, the
+  particle friction is halved (down to 0) and the engine rebuilt from the current state,
+  so dense targets stay reachable (YADE's "compaction friction" idea).
+* :func:`radius_expansion` — the spheres of the whole specimen are placed at reduced
+  radii in the closed box (L × L × H) and grown to full size in small increments
+  without gravity; the void ratio is then exact by construction if the grains jam in
+  the box, and otherwise the specimen settles under gravity and is re-measured.
+
+In both methods the achieved void ratio is measured with the plate in contact (seated
+at ``seat_stress``): e = (L² z_plate − V_s) / V_s.
+
+Mass scaling: during generation only, every density is multiplied by ``density_scale``
+(dt grows by its square root). Gravity is not scaled, so self-weight stresses during
+generation are ``density_scale`` times the real ones (≈ 0.4 kPa × scale for a 25 mm
+sand specimen) — keep them well below the test's normal stress.
+
+Engines are rebuilt from the current arrays between stages (new particles, changed
+friction or radii); contact history is not carried over, which only matters while
+the specimen is being built.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .packing import SIEVE_PRESETS, SieveCurve, random_cloud
+
+
+# --------------------------------------------------------------------------- size distribution
+def truncated_above(curve, d_max):
+    """Drop the grains coarser than ``d_max`` and renormalise the remaining mass to 1."""
+    d, f = curve.diameters, curve.passing
+    if not d[0] < d_max <= d[-1]:
+        raise ValueError(f"coarse truncation diameter {d_max} outside the curve ({d[0]}, {d[-1]}]")
+    f_cut = np.interp(d_max, d, f)
+    if f_cut <= 0:
+        raise ValueError(f"no mass below the coarse truncation diameter {d_max}")
+    keep = d < d_max
+    return SieveCurve(np.concatenate([d[keep], [d_max]]), np.concatenate([f[keep], [f_cut]]) / f_cut)
+
+
+def specimen_curve(preset="thesis_sand", diameters=None, passing=None, scale=1.0, truncate_below=None,
+                   truncate_above=None):
+    """The sieve curve of a specimen: a preset or a custom curve, scaled, then truncated
+    at the fine end (``truncate_below``) and the coarse end (``truncate_above``), both
+    given as scaled diameters [m]."""
+    if diameters is not None:
+        curve = SieveCurve(np.asarray(diameters, float), np.asarray(passing, float))
+    else:
+        if preset not in SIEVE_PRESETS:
+            raise ValueError(f"unknown sieve preset {preset!r}; allowed: {sorted(SIEVE_PRESETS)}")
+        curve = SIEVE_PRESETS[preset]
+    curve = curve.scaled(scale)
+    # sieves with zero passing at the fine end carry no mass: start at the last zero
+    first = max(0, int(np.searchsorted(curve.passing, 0.0, side="right")) - 1)
+    curve = SieveCurve(curve.diameters[first:], curve.passing[first:])
+    if truncate_below is not None:
+        curve = curve.truncated(truncate_below)
+    if truncate_above is not None:
+        curve = truncated_above(curve, truncate_above)
+    return curve
+
+
+def diameters_for_solid_volume(curve, solid_volume, rng):
+    """Diameters drawn from ``curve`` until their sphere volume reaches ``solid_volume``.
+
+    The last grain is kept whole, so the solid volume overshoots by less than one grain.
+    """
+    mean_volume = float(np.mean(np.pi / 6 * curve.sample_diameters(4096, rng) ** 3))
+    out = []
+    total = 0.0
+    while total < solid_volume:
+        batch = curve.sample_diameters(max(64, int(1.2 * (solid_volume - total) / mean_volume)), rng)
+        vol = np.cumsum(np.pi / 6 * batch**3) + total
+        stop = int(np.searchsorted(vol, solid_volume)) + 1
+        out.append(batch[:stop])
+        total = vol[min(stop, len(vol)) - 1]
+    return np.concatenate(out)
+
+
+def solid_volume_for(void_ratio, volume):
+    """V_s = V / (1 + e)."""
+    return volume / (1.0 + void_ratio)
+
+
+def layer_count(void_ratio, cloud_solid_fraction, height=None, d_max=None):
+    """N = ⌈1 / ((1 + e) · cloud_solid_fraction)⌉: each layer's cloud fits in a
+    generation height equal to the specimen height (module docstring); capped so that a
+    layer is at least two of the largest grains thick, N ≤ ⌊H / (2 d_max)⌋."""
+    n = max(1, math.ceil(1.0 / ((1.0 + void_ratio) * cloud_solid_fraction) - 1e-9))
+    if height is not None and d_max is not None:
+        n = min(n, max(1, int(height // (2.0 * d_max))))
+    return n
+
+
+def layer_tops(n_layers, height, undercompaction):
+    """Plate heights z_k = (H/N)[(k − 1) + (1 + U_k)], U_k = U_1 (N − k)/(N − 1) (Jiang et al. 2003)."""
+    k = np.arange(1, n_layers + 1)
+    u = undercompaction * (n_layers - k) / max(n_layers - 1, 1)
+    return height / n_layers * ((k - 1) + (1 + u))
+
+
+def split_into_layers(diameters, n_layers, rng):
+    """Random, equal-solid-volume groups of grains (each layer gets the same PSD)."""
+    order = rng.permutation(len(diameters))
+    vol = np.cumsum(np.pi / 6 * diameters[order] ** 3)
+    cuts = np.searchsorted(vol, vol[-1] * np.arange(1, n_layers) / n_layers)
+    return [diameters[part] for part in np.split(order, cuts)]
+
+
+def void_ratio_of_box(area, height, radii):
+    """e = (A h − V_s) / V_s with V_s the volume of the spheres."""
+    solid = float(np.sum(4.0 / 3.0 * np.pi * np.asarray(radii) ** 3))
+    return (area * height - solid) / solid
+
+
+# --------------------------------------------------------------------------- settings and result
+@dataclass
+class GenerationSettings:
+    """Inputs shared by both methods (units: m, s, Pa)."""
+
+    box_length: float
+    height: float
+    void_ratio: float
+    sand: object                      # de_domain.Material of the grains (real density)
+    wall: object                      # material of the (frictionless) side walls
+    plate: object                     # material of the bottom and the compaction plate
+    friction: float | None = None     # grain friction during generation; None = sand's
+    density_scale: float = 10.0
+    gravity: tuple = (0.0, 0.0, -9.81)
+    local_damping: float = 0.5
+    safety_factor: float = 0.3
+    contact_law: str = "linear"
+    unbalanced_force: float = 0.01
+    plate_velocity: float = 0.2
+    plate_stress_limit: float = 20e3
+    seat_stress: float = 500.0
+    layers: int | None = None
+    undercompaction: float = 0.03
+    cloud_solid_fraction: float = 0.2
+    max_steps_per_layer: int = 200000
+    seed: int = 0
+    check_every: int = 50
+
+
+@dataclass
+class Specimen:
+    """A generated specimen: sphere centres and radii (m), the plate height at the end
+    (the specimen height) and the achieved void ratio, with a per-stage log."""
+
+    positions: np.ndarray
+    radii: np.ndarray
+    height: float
+    void_ratio: float
+    method: str
+    steps: int = 0
+    log: list = field(default_factory=list)
+
+    def metadata(self):
+        return {"height": self.height, "void_ratio": self.void_ratio, "method": self.method}
+
+
+# --------------------------------------------------------------------------- engine plumbing
+def _materials(s, friction):
+    sand = replace(s.sand, density=s.sand.density * s.density_scale, friction=friction)
+    wall = replace(s.wall, density=s.wall.density * s.density_scale)
+    plate = replace(s.plate, density=s.plate.density * s.density_scale)
+    return [sand, wall, plate]
+
+
+def _box_walls(s, plate_z):
+    from . import PlaneWall
+    L = s.box_length
+    walls = [PlaneWall((0, 0, 0), (1, 0, 0), 1), PlaneWall((L, 0, 0), (-1, 0, 0), 1),
+             PlaneWall((0, 0, 0), (0, 1, 0), 1), PlaneWall((0, L, 0), (0, -1, 0), 1),
+             PlaneWall((0, 0, 0), (0, 0, 1), 2), PlaneWall((0, 0, plate_z), (0, 0, -1), 2)]
+    return walls
+
+
+def _engine(s, pos, radii, vel, angvel, friction, plate_z, gravity, dt=None):
+    from . import Engine, Particles
+    mats = _materials(s, friction)
+    p = Particles.from_spheres(pos, radii, np.zeros(len(radii), np.int32), mats, velocities=vel)
+    if angvel is not None:
+        p.angvel[:] = angvel
+    return Engine(p, mats, walls=_box_walls(s, plate_z), contact_law=s.contact_law, gravity=gravity,
+                  dt=dt, safety_factor=s.safety_factor, local_damping=s.local_damping)
+
+
+def _plate_stress(engine, s):
+    return float(engine.walls[5].force[2]) / s.box_length**2
+
+
+def _unbalanced(engine):
+    from .diagnostics import unbalanced_force_ratio
+    return unbalanced_force_ratio(engine)
+
+
+def _rebuild(engine, s, friction, gravity):
+    p = engine.particles
+    return _engine(s, p.pos, p.radius, p.vel, p.angvel, friction, engine.walls[5].point[2], gravity, engine.dt)
+
+
+def _say(log, text):
+    if log is not None:
+        log(text)
+
+
+def _compact_to(engine, s, z_target, friction, log, label, max_steps):
+    """Move the plate down to ``z_target`` (lowering friction if the stress exceeds the
+    limit), hold it there until the unbalanced force ratio is below the threshold.
+    Returns (engine, friction, steps)."""
+    plate = engine.walls[5]
+    plate.velocity = np.array([0.0, 0.0, -s.plate_velocity])
+    steps = 0
+    held = False
+    while steps < max_steps:
+        engine.run(s.check_every)
+        steps += s.check_every
+        plate = engine.walls[5]
+        if not held and plate.point[2] <= z_target:
+            plate.point[2] = z_target
+            plate.velocity = np.zeros(3)
+            held = True
+        if not held and _plate_stress(engine, s) > s.plate_stress_limit:
+            friction = 0.0 if friction < 0.02 else 0.5 * friction
+            _say(log, f"{label}: plate stress {_plate_stress(engine, s):.3g} Pa above the limit at "
+                      f"z = {plate.point[2] * 1e3:.2f} mm; grain friction lowered to {friction:.3g}")
+            engine = _rebuild(engine, s, friction, s.gravity)
+            engine.walls[5].velocity = np.array([0.0, 0.0, -s.plate_velocity])
+            if friction == 0.0:
+                s_limit = s.plate_stress_limit
+                s = replace(s, plate_stress_limit=math.inf)  # nothing left to lower: push on
+                _say(log, f"{label}: friction is 0; pushing on past {s_limit:.3g} Pa")
+        if held and _unbalanced(engine) < s.unbalanced_force:
+            break
+    return engine, friction, steps
+
+
+def _seat_plate(engine, s, log, label, max_steps):
+    """Lower the plate slowly until it carries ``seat_stress`` (measures the height of a
+    specimen that is denser than its target), then let it come to rest."""
+    steps = 0
+    plate = engine.walls[5]
+    if _plate_stress(engine, s) >= s.seat_stress:
+        return engine, steps
+    v = 0.1 * s.plate_velocity
+    plate.velocity = np.array([0.0, 0.0, -v])
+    while steps < max_steps and _plate_stress(engine, s) < s.seat_stress:
+        engine.run(s.check_every // 5 or 1)
+        steps += s.check_every // 5 or 1
+    engine.walls[5].velocity = np.zeros(3)
+    while steps < max_steps:
+        engine.run(s.check_every)
+        steps += s.check_every
+        if _unbalanced(engine) < s.unbalanced_force:
+            break
+    _say(log, f"{label}: plate seated at {engine.walls[5].point[2] * 1e3:.3f} mm "
+              f"({_plate_stress(engine, s):.3g} Pa)")
+    return engine, steps
+
+
+# --------------------------------------------------------------------------- methods
+def under_compaction(diameters, s: GenerationSettings, log=None):
+    """Multi-layer under-compaction (module docstring). ``diameters``: all grains of the
+    specimen (their volume fixes V_s). Returns a :class:`Specimen`."""
+    rng = np.random.default_rng(s.seed)
+    L, H = s.box_length, s.height
+    n_layers = s.layers or layer_count(s.void_ratio, s.cloud_solid_fraction, H, float(np.max(diameters)))
+    groups = split_into_layers(np.asarray(diameters, float), n_layers, rng)
+    tops = layer_tops(n_layers, H, s.undercompaction)
+    friction = s.sand.friction if s.friction is None else s.friction
+    dt = s.safety_factor * _critical_dt_all(s, diameters)  # one dt for every stage
+    pos = np.zeros((0, 3))
+    radii = np.zeros(0)
+    engine = None
+    steps = 0
+    stages = []
+    for k, (group, z_k) in enumerate(zip(groups, tops), start=1):
+        r_new = 0.5 * group
+        surface = float(np.max(pos[:, 2] + radii)) if len(radii) else 0.0
+        cloud_height = np.sum(np.pi / 6 * group**3) / (s.cloud_solid_fraction * L * L)
+        lo = np.array([0.0, 0.0, surface])
+        for attempt in range(8):
+            hi = np.array([L, L, surface + cloud_height * 1.25**attempt + 2 * r_new.max()])
+            try:
+                new_pos, r_new = random_cloud(r_new, lo, hi, seed=s.seed + k + 1000 * attempt)
+                break
+            except ValueError:
+                continue
+        else:
+            raise RuntimeError(f"layer {k}: could not place a non-overlapping cloud of {len(r_new)} grains")
+        vel = np.zeros((len(radii) + len(r_new), 3))
+        angvel = np.zeros_like(vel)
+        if engine is not None:
+            vel[: len(radii)] = engine.particles.vel
+            angvel[: len(radii)] = engine.particles.angvel
+        pos = np.concatenate([pos, new_pos])
+        radii = np.concatenate([radii, r_new])
+        plate_z = float(np.max(new_pos[:, 2] + r_new)) + 1e-4
+        engine = _engine(s, pos, radii, vel, angvel, friction, plate_z, s.gravity, dt)
+        label = f"layer {k}/{n_layers}"
+        engine, friction, n = _compact_to(engine, s, z_k, friction, log, label, s.max_steps_per_layer)
+        steps += n
+        uf = _unbalanced(engine)
+        stages.append({"layer": k, "grains": len(r_new), "plate_height": float(engine.walls[5].point[2]),
+                       "plate_stress": _plate_stress(engine, s), "unbalanced_force": uf, "friction": friction,
+                       "steps": n})
+        _say(log, f"{label}: {len(r_new)} grains, plate at {engine.walls[5].point[2] * 1e3:.3f} mm "
+                  f"(target {z_k * 1e3:.3f}), stress {_plate_stress(engine, s):.3g} Pa, "
+                  f"unbalanced force {uf:.3g}, {n} steps")
+        pos, radii = engine.particles.pos.copy(), engine.particles.radius.copy()
+    engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
+    steps += n
+    height = float(engine.walls[5].point[2])
+    e = void_ratio_of_box(L * L, height, engine.particles.radius)
+    return Specimen(engine.particles.pos.copy(), engine.particles.radius.copy(), height, e,
+                    "under_compaction", steps, stages)
+
+
+def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, steps_per_increment=100):
+    """Grow the grains from reduced radii to full size in the closed box (module docstring)."""
+    L, H = s.box_length, s.height
+    radii_full = 0.5 * np.asarray(diameters, float)
+    solid_fraction = np.sum(4 / 3 * np.pi * radii_full**3) / (L * L * H)
+    shrink = min(1.0, (s.cloud_solid_fraction / solid_fraction) ** (1.0 / 3.0))
+    pos, r0 = random_cloud(radii_full * shrink, (0, 0, 0), (L, L, H), seed=s.seed)
+    order = np.argsort(-radii_full, kind="stable")  # random_cloud returns radii largest first
+    radii_full = radii_full[order]
+    friction = s.sand.friction if s.friction is None else s.friction
+    dt = s.safety_factor * _critical_dt_all(s, diameters)
+    vel = np.zeros_like(pos)
+    angvel = np.zeros_like(pos)
+    steps = 0
+    engine = None
+    for k in range(1, increments + 1):
+        f = shrink + (1.0 - shrink) * k / increments
+        engine = _engine(s, pos, radii_full * f, vel, angvel, friction, H, (0.0, 0.0, 0.0), dt)
+        engine.run(steps_per_increment)
+        steps += steps_per_increment
+        pos, vel, angvel = engine.particles.pos.copy(), engine.particles.vel.copy(), engine.particles.angvel.copy()
+    stages = []
+    # equilibrium without gravity, then with gravity
+    for label, g in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
+        engine = _engine(s, pos, radii_full, vel, angvel, friction, H, g, dt)
+        n = 0
+        while n < s.max_steps_per_layer:
+            engine.run(s.check_every)
+            n += s.check_every
+            if _unbalanced(engine) < s.unbalanced_force:
+                break
+        steps += n
+        stages.append({"stage": label, "plate_stress": _plate_stress(engine, s),
+                       "unbalanced_force": _unbalanced(engine), "steps": n})
+        _say(log, f"radius expansion ({label}): plate stress {_plate_stress(engine, s):.3g} Pa, "
+                  f"unbalanced force {_unbalanced(engine):.3g}, {n} steps")
+        pos, vel, angvel = engine.particles.pos.copy(), engine.particles.vel.copy(), engine.particles.angvel.copy()
+    engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
+    steps += n
+    height = float(engine.walls[5].point[2])
+    e = void_ratio_of_box(L * L, height, engine.particles.radius)
+    return Specimen(engine.particles.pos.copy(), engine.particles.radius.copy(), height, e,
+                    "radius_expansion", steps, stages)
+
+
+def _critical_dt_all(s, diameters):
+    """Δt_crit of the smallest grain (linear law, k = 2 E r) with scaled density."""
+    r = 0.5 * float(np.min(diameters))
+    m = s.sand.density * s.density_scale * 4.0 / 3.0 * np.pi * r**3
+    return math.sqrt(m / (2.0 * s.sand.young * r))
+
+
+def generate(method, diameters, settings, log=None):
+    """Dispatch to :func:`under_compaction` or :func:`radius_expansion`."""
+    if method == "under_compaction":
+        return under_compaction(diameters, settings, log)
+    if method == "radius_expansion":
+        return radius_expansion(diameters, settings, log)
+    raise ValueError(f"unknown generation method {method!r}; allowed: under_compaction, radius_expansion")
