@@ -45,3 +45,10 @@ def test_mixed_materials_by_cell_group_set_the_time_step():
     assert solver.dt == pytest.approx(0.5 * solver.dt_critical)
     with pytest.raises(ValueError, match="'footing'"):
         ExplicitSolid(solver.tagged_mesh, {"soil": MATERIALS["soil"]})
+
+
+@pytest.mark.parametrize("group, area", [("interface", 0.25), ("footing_top", 0.25), ("soil_top", 3.75),
+                                         ("soil_bottom", 4.0), ("soil_sides", 8.0)])
+def test_footing_facet_groups_cover_their_surfaces_exactly_once(group, area):
+    assert interface_area(ExplicitSolid(load_geo("footing", 0.3, MPI.COMM_SELF), MATERIALS), group) == \
+        pytest.approx(area, rel=1e-12)
