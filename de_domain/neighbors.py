@@ -1,10 +1,12 @@
 """Neighbour search: cell (bin) lists + Verlet lists with a skin (DESIGN.md §2).
 
-* Sphere pairs are a half list (i < j), grouped by i (CSR ``i_start``); a second
+* Sphere pairs are a half list (i < j), sorted by (i, j) (CSR ``i_start``); a second
   CSR (``j_start``/``j_pairs``) lists the pairs in which a particle is j, so that
   forces are summed per particle in a fixed order (deterministic for any thread
   count, no atomics).
-* Sphere–facet candidates are grouped by particle (CSR ``f_start``/``f_tri``).
+* Sphere–facet candidates are sorted by (particle, triangle) (CSR ``f_start``/``f_tri``).
+  The canonical order makes every force sum independent of when and on which grid
+  the lists were built: results do not change with the rebuild frequency.
 * Lists are rebuilt when the largest particle displacement since the last build
   plus the largest of (that, the largest facet-vertex displacement) exceeds the
   skin: for spheres alone this is the usual 2·max|Δx| > skin rule.
@@ -72,6 +74,18 @@ def _cell_coords(c, dims):
     return cx, cy, cz
 
 
+@njit(cache=True)
+def _insertion_sort(a, start, stop):
+    """Sort a[start:stop] ascending in place (short neighbour segments)."""
+    for k in range(start + 1, stop):
+        v = a[k]
+        m = k - 1
+        while m >= start and a[m] > v:
+            a[m + 1] = a[m]
+            m -= 1
+        a[m + 1] = v
+
+
 @njit(parallel=True, cache=True)
 def _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
                          n_active, i_start, j_out, fill):
@@ -97,6 +111,8 @@ def _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, pa
                             count += 1
         if not fill:
             i_start[i + 1] = count
+        else:
+            _insertion_sort(j_out, i_start[i], i_start[i] + count)
 
 
 def build_pair_list(pos, radius, n_active, skin, max_cells):
@@ -242,6 +258,8 @@ def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell,
                 count += 1
         if not fill:
             f_start[i + 1] = count
+        else:
+            _insertion_sort(f_out, f_start[i], f_start[i] + count)
 
 
 def build_facet_list(pos, radius, n_active, skin, vertices, triangles, grid):
