@@ -5,6 +5,7 @@
     boundary.py  materials, boundary conditions, loads and damping laws (plain records)
     explicit.py  ExplicitSolid: the 4-step central-difference u–p update, coupling arrays
     output.py    XDMF fields, energy and reaction CSV files
+    build.py     build_solid(): the solver from plain (TOML-like) parameters
 
 ``fe_domain`` knows nothing of particles; the coupling (``cosim``) reads facet
 triangles, node positions and velocities from ``ExplicitSolid`` and writes
