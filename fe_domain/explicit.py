@@ -108,6 +108,7 @@ class ExplicitSolid:
         self.n_owned_nodes = index_map.size_local
         self.n_nodes = index_map.size_local + index_map.num_ghosts
 
+        self._boundary_nodes: dict[str, np.ndarray] = {}
         self._setup_geometry(cell_nodes)
         self._setup_material(material, alpha_tau)
 
@@ -367,9 +368,15 @@ class ExplicitSolid:
 
     # ------------------------------------------------------------------ boundaries
     def boundary_nodes(self, name: str) -> np.ndarray:
-        """Local node indices (owned and ghost) on the facets of group ``name``."""
-        facets = self.tagged_mesh.facets(name)
-        return fem.locate_dofs_topological(self.Q, self.mesh.topology.dim - 1, facets).astype(np.int64)
+        """Local node indices (owned and ghost) on the facets of group ``name``.
+
+        Collective on first use of a name (ranks exchange shared nodes); cached after.
+        """
+        if name not in self._boundary_nodes:
+            facets = self.tagged_mesh.facets(name)
+            self._boundary_nodes[name] = fem.locate_dofs_topological(
+                self.Q, self.mesh.topology.dim - 1, facets).astype(np.int64)
+        return self._boundary_nodes[name]
 
     def facet_triangles(self, name: str) -> np.ndarray:
         """(n_facets, 3) local node indices of the facets of group ``name`` owned by this rank.
@@ -384,7 +391,7 @@ class ExplicitSolid:
         return self._node_of_vertex[facet_vertices[facets]]
 
     def reaction(self, name: str) -> np.ndarray:
-        """Total force (N) the supports of group ``name`` exert on the body, at the last step.
+        """Total force (N) the supports of group ``name`` exert on the body, at the last step (collective).
 
         R = M a − (f_ext − f_int − f_damp) summed over the group's owned nodes.
         """
