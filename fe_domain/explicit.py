@@ -20,7 +20,7 @@ f_int = ∫ Bᵀ(s(u) + K div u I): the standard P1 element, which locks as ν �
 h_e is the smallest altitude of tetrahedron e (3 V_e / largest face area), used both
 for τ_e and for the time step Δt = f_s min_e h_e / c_p,e, c_p = √((K + 4G/3)/ρ).
 
-Stability of step 3 (measured; ``tests/fe/test_stabilisation.py`` re-checks it).
+Stability of step 3 (measured; ``tests/fe/test_fe_stabilisation.py`` re-checks it).
 The τ-term of step 3 is an explicit diffusion of p with no Δt in front: a pressure
 mode is multiplied each step by 1 − α_τ (K/2G) λ, λ = O(1) a mesh eigenvalue of
 h_e² M_p⁻¹-scaled ∫∇q·∇p, so it is stable only while α_τ K/G ≤ C, independent of
@@ -252,10 +252,10 @@ class ExplicitSolid:
             if isinstance(load, BodyForce):
                 form = forms.body_force_load(w, self.rho, self._constant(load.acceleration))
             elif isinstance(load, Traction):
-                tag = self.tagged_mesh._tag(load.boundary, 2)
+                tag = self.tagged_mesh.tag(load.boundary, 2)
                 form = forms.traction_load(w, self._constant(load.traction), ds(tag))
             elif isinstance(load, NormalPressure):
-                tag = self.tagged_mesh._tag(load.boundary, 2)
+                tag = self.tagged_mesh.tag(load.boundary, 2)
                 form = forms.normal_pressure_load(w, self._constant(load.pressure), ds(tag),
                                                   ufl.FacetNormal(self.mesh))
             else:

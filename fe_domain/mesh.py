@@ -37,7 +37,8 @@ class TaggedMesh:
     facet_tags: MeshTagsMetaClass
     groups: dict[str, tuple[int, int]]
 
-    def _tag(self, name: str, dim: int) -> int:
+    def tag(self, name: str, dim: int) -> int:
+        """gmsh physical tag number of group ``name`` (dimension checked)."""
         if name not in self.groups:
             raise KeyError(f"physical group {name!r} not in mesh; available: {sorted(self.groups)}")
         group_dim, tag = self.groups[name]
@@ -47,12 +48,12 @@ class TaggedMesh:
 
     def facets(self, name: str) -> np.ndarray:
         """Local indices of the facets in the 2D physical group ``name``."""
-        tag = self._tag(name, self.mesh.topology.dim - 1)
+        tag = self.tag(name, self.mesh.topology.dim - 1)
         return self.facet_tags.indices[self.facet_tags.values == tag]
 
     def cells(self, name: str) -> np.ndarray:
         """Local indices of the cells in the 3D physical group ``name``."""
-        tag = self._tag(name, self.mesh.topology.dim)
+        tag = self.tag(name, self.mesh.topology.dim)
         return self.cell_tags.indices[self.cell_tags.values == tag]
 
     def names(self, dim: int) -> list[str]:

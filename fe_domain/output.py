@@ -11,7 +11,6 @@ from pathlib import Path
 
 from dolfinx import fem
 from dolfinx.io import XDMFFile
-from mpi4py import MPI
 
 from fe_domain import forms
 
