@@ -279,7 +279,7 @@ class Engine:
         Sphere pairs: ``i``, ``j``, ``force`` (on i), ``overlap``, ``normal`` (i → j),
         ``branch`` (x_j − x_i), ``point`` (overlap midpoint).
         Walls: ``wall_particle``, ``wall_index``, ``wall_force`` (on the particle),
-        ``wall_point``. Facets: ``facet_particle``, ``facet_triangle`` (global
+        ``wall_point`` (overlap midpoint). Facets: ``facet_particle``, ``facet_triangle`` (global
         index over ``facets``), ``facet_force`` (on the particle), ``facet_lambda``.
         """
         p = self.particles
@@ -299,7 +299,7 @@ class Engine:
             wn = np.array([w.normal for w in self.walls])[wi]
             wf = self.wall_fn[wp, wi][:, None] * wn + self.wall_history[wp, wi, :3]
             dist = np.einsum("ij,ij->i", p.pos[wp] - np.array([w.point for w in self.walls])[wi], wn)
-            wpoint = p.pos[wp] - dist[:, None] * wn
+            wpoint = p.pos[wp] - (0.5 * (p.radius[wp] + dist))[:, None] * wn  # overlap midpoint
         else:
             wf = np.zeros((0, 3))
             wpoint = np.zeros((0, 3))
