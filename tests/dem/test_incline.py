@@ -54,3 +54,23 @@ def test_sphere_slides(theta_deg):
 def test_sphere_rolls_on_inclined_facet_mesh():
     theta = math.radians(20.0)
     assert downhill_acceleration(20.0, use_facets=True) == pytest.approx(5.0 / 7.0 * G * math.sin(theta), rel=0.01)
+
+
+def test_rolling_resistance_decelerates_at_five_sevenths_eta_g():
+    """Rolling on a flat plane with a saturated rolling moment M = η_r f_n r:
+    m a = F_t, I α = −F_t r − M, a = α r  ⇒  a = −5/7 η_r g."""
+    eta = 0.1
+    mat = [Material(young=5e7, friction=MU, restitution=0.3, rolling_stiffness=1.0, rolling_friction=eta)]
+    p = Particles.from_spheres([[0, 0, R]], R, materials=mat)
+    p.pos[0, 2] = R - p.mass[0] * G / (2 * 5e7 * R)
+    p.vel[0] = (0.2, 0, 0)
+    p.angvel[0] = (0, 0.2 / R, 0)
+    engine = Engine(p, mat, walls=[PlaneWall((0, 0, 0), (0, 0, 1))])
+    engine.run(500)
+    times, speeds = [], []
+    for _ in range(40):
+        engine.run(50)
+        times.append(engine.time)
+        speeds.append(p.vel[0, 0])
+    assert speeds[-1] > 0
+    assert np.polyfit(times, speeds, 1)[0] == pytest.approx(-5.0 / 7.0 * eta * G, rel=0.01)
