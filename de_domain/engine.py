@@ -260,6 +260,12 @@ class Engine:
         integrated with the trapezoidal rule over the recorded steps, and
         ``residual = total − (initial_total + work − dissipated)``.
         """
+        if self._initial_total is None:  # before the first step: current velocities, no contacts yet
+            p = self.particles
+            n = p.n_owned
+            self._state["kinetic_translational"] = float(0.5 * np.sum(p.mass[:n, None] * p.vel[:n] ** 2))
+            self._state["kinetic_rotational"] = float(0.5 * np.sum(p.inertia[:n, None] * p.angvel[:n] ** 2))
+            self._state["gravity"] = float(-np.sum(p.mass[:n] * (p.pos[:n] @ self.gravity)))
         out = dict(self._state)
         out["kinetic"] = out["kinetic_translational"] + out["kinetic_rotational"]
         for k in RATE_TERMS:
