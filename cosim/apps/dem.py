@@ -15,6 +15,7 @@ from cosim.errors import CaseError
 from cosim.outputs import CsvSeries, ProgressLine, atomic_write_text, is_root, mpi_comm, say, write_run_metadata
 
 CHECKPOINT = "checkpoint.npz"
+PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint clock
 
 
 def prepare(case, case_path):
@@ -114,7 +115,7 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     if not resume:
         record()
     while engine.step_count < total:
-        engine.run(min(every - engine.step_count % every, total - engine.step_count))
+        engine.run(min(every - engine.step_count % every, total - engine.step_count, PROGRESS_CHUNK))
         if engine.step_count % every == 0 or engine.step_count == total:
             record()
         progress.update(engine.step_count, engine.time)
