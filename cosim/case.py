@@ -33,7 +33,8 @@ class _Section(BaseModel):
 # --------------------------------------------------------------------------- case
 class CaseInfo(_Section):
     name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
-    kind: Literal["dem"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls)")
+    kind: Literal["dem", "direct_shear"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls), "
+                                                  "'direct_shear' (specimen generation + the direct shear test, DESIGN §3)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -92,11 +93,58 @@ class DemSection(_Section):
     walls: list[DemWall] = Field(default_factory=list, description="[[dem.walls]] tables")
 
 
+# --------------------------------------------------------------------------- direct shear (DESIGN §3)
+class SpecimenSection(_Section):
+    source: Literal["generate", "file"] = Field(default="generate", description="'generate': build the specimen (method below); 'file': load a packing (.npz or text 'x y z r')")
+    file: Optional[str] = Field(default=None, description="packing file for source='file', relative to the case file")
+    method: Literal["under_compaction", "radius_expansion"] = Field(default="under_compaction", description="'under_compaction': multi-layer gravity deposition with a compaction plate (Jiang et al. 2003); 'radius_expansion': grow radii in the closed box")
+    sieve: str = Field(default="thesis_sand", description="sieve-curve preset (de_domain.packing.SIEVE_PRESETS), unless sieve_diameters/sieve_passing are given")
+    sieve_diameters: Optional[list[float]] = Field(default=None, min_length=2, description="custom sieve curve: increasing sieve sizes [m]")
+    sieve_passing: Optional[list[float]] = Field(default=None, min_length=2, description="custom sieve curve: cumulative mass fraction passing, 0 ... 1 [-]")
+    scale: float = Field(default=1.0, gt=0, le=100, description="scale factor applied to every diameter (thesis: 4) [-]")
+    truncate_below: Optional[float] = Field(default=None, gt=0, description="drop the fines below this (scaled) diameter [m]")
+    truncate_above: Optional[float] = Field(default=None, gt=0, description="drop the grains above this (scaled) diameter [m]")
+    void_ratio: float = Field(default=0.65, gt=0.3, lt=1.5, description="target void ratio e = V_voids/V_solids of the specimen [-]")
+    tolerance: float = Field(default=0.01, gt=0, le=0.1, description="allowed |e - target| [-]")
+    layers: Optional[int] = Field(default=None, ge=1, le=50, description="number of layers (under_compaction); default from the target: ceil(V_solid / (cloud_solid_fraction * generation volume))")
+    undercompaction: float = Field(default=0.03, ge=0, le=0.3, description="U_1: the first layer is compacted to (1 + U_1) x its nominal thickness, U decreasing linearly to 0 at the last layer [-]")
+    cloud_solid_fraction: float = Field(default=0.2, gt=0.01, le=0.35, description="solid fraction of each generated cloud [-]")
+    deposition_friction: Optional[float] = Field(default=None, ge=0, description="particle friction during generation (lowered automatically when the plate cannot reach its height); default: the sand's [-]")
+    density_scale: float = Field(default=100.0, ge=1, le=1e4, description="mass scaling during generation only: density x this and gravity / this (real weights), so dt grows by its square root [-]")
+    plate_velocity: float = Field(default=0.3, gt=0, description="speed of the compaction plate [m/s]")
+    plate_stress_limit: float = Field(default=20e3, gt=0, description="plate stress above which the friction is halved to let the layer compact [Pa]")
+    unbalanced_force: float = Field(default=0.01, gt=0, le=0.5, description="a layer ends when the unbalanced force ratio is below this [-]")
+    max_steps_per_layer: int = Field(default=200000, gt=0, description="safety cap on steps per layer [-]")
+
+
+class DirectShearSection(_Section):
+    box_length: float = Field(default=0.06, gt=0, description="inner side L of the square shear box [m]")
+    sample_height: float = Field(default=0.025, gt=0, description="specimen height h (box split at h/2) [m]")
+    normal_stress: float = Field(default=100e3, gt=0, le=10e6, description="normal stress sigma_n held by the servo top plate [Pa]")
+    shear_distance: float = Field(default=0.009, gt=0, description="horizontal displacement of the upper half at the end [m] (15 % of L = 9 mm)")
+    shear_velocity: Optional[float] = Field(default=None, gt=0, description="velocity of the upper half [m/s]; default from inertial_number")
+    inertial_number: float = Field(default=1e-3, gt=0, le=0.1, description="target I = (v/h) d50 sqrt(rho/sigma_n) when shear_velocity is not given [-]")
+    ramp_distance: float = Field(default=2e-4, ge=0, description="the shear velocity ramps up linearly over this displacement [m]")
+    servo_gain: float = Field(default=0.3, gt=0, le=1, description="fraction of the stress error the servo removes per step (PFC-style gain) [-]")
+    servo_max_velocity: float = Field(default=0.05, gt=0, description="largest servo plate speed [m/s]")
+    consolidation_tolerance: float = Field(default=0.01, gt=0, le=0.1, description="consolidation ends when |sigma - sigma_n|/sigma_n is below this ... [-]")
+    consolidation_unbalanced_force: float = Field(default=0.02, gt=0, le=0.5, description="... and the unbalanced force ratio is below this [-]")
+    max_consolidation_steps: int = Field(default=100000, gt=0, description="safety cap on consolidation steps [-]")
+    sand_material: str = Field(default="sand", description="material name of the grains ([[dem.materials]])")
+    side_wall_material: str = Field(default="side_wall", description="material name of the box side walls (thesis: frictionless)")
+    plate_material: str = Field(default="plate", description="material name of the top and bottom plates (rough)")
+    rows: int = Field(default=300, ge=10, le=100000, description="number of CSV rows over the shear distance [-]")
+    residual_fraction: float = Field(default=0.2, gt=0, lt=1, description="residual = mean over the last fraction of the shear distance [-]")
+    band_thickness: float = Field(default=0.0, ge=0, description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 4 d50")
+
+
 class Case(_Section):
     case: CaseInfo
     time: TimeSection
     output: OutputSection = Field(default_factory=OutputSection)
     dem: Optional[DemSection] = None
+    specimen: Optional[SpecimenSection] = None
+    direct_shear: Optional[DirectShearSection] = None
 
 
 # --------------------------------------------------------------------------- loading
@@ -212,6 +260,9 @@ def resolve_path(case_file, relative):
 def _check_consistency(path, case):
     """Cross-field rules pydantic's per-field ranges cannot express."""
     t = case.time
+    if case.case.kind == "direct_shear":
+        _check_direct_shear(path, case)
+        return
     if (t.duration is None) == (t.steps is None):
         raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps), "give exactly one of duration [s] or steps")
     if case.output.interval and t.duration and case.output.interval > t.duration:
@@ -267,3 +318,53 @@ def _check_dem(path, dem):
             f = resolve_path(path, w.file)
             if not f.is_file():
                 raise CaseError(path, f"{key}.file", w.file, f"file not found (looked for {f})")
+
+
+def _check_direct_shear(path, case):
+    """A direct shear case: [dem] materials, [specimen], [direct_shear]; the run length
+    follows from the shear distance, so [time] only sets dt / safety_factor."""
+    t = case.time
+    if t.duration is not None or t.steps is not None:
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
+                        "a direct_shear run lasts until direct_shear.shear_distance; give only time.dt or time.safety_factor")
+    for section in ("dem", "specimen", "direct_shear"):
+        if getattr(case, section) is None:
+            raise CaseError(path, section, None, f"a case of kind 'direct_shear' needs a [{section}] section")
+    dem, sp, ds = case.dem, case.specimen, case.direct_shear
+    if dem.particles is not None:
+        raise CaseError(path, "dem.particles", "present", "a direct_shear case builds its particles from [specimen]; remove [dem.particles]")
+    if dem.walls:
+        raise CaseError(path, "dem.walls", len(dem.walls), "a direct_shear case builds the shear box itself; remove [[dem.walls]]")
+    names = [m.name for m in dem.materials]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise CaseError(path, f"dem.materials[{i}].name", name, "material names must be unique")
+    for key in ("sand_material", "side_wall_material", "plate_material"):
+        if getattr(ds, key) not in names:
+            raise CaseError(path, f"direct_shear.{key}", getattr(ds, key), f"must be one of the materials: {names}")
+    if ds.shear_distance >= ds.box_length:
+        raise CaseError(path, "direct_shear.shear_distance", ds.shear_distance, f"must be smaller than box_length = {ds.box_length} m")
+    if ds.ramp_distance >= ds.shear_distance:
+        raise CaseError(path, "direct_shear.ramp_distance", ds.ramp_distance, f"must be smaller than shear_distance = {ds.shear_distance} m")
+    if sp.source == "file":
+        if sp.file is None:
+            raise CaseError(path, "specimen.file", None, "source = 'file' needs a packing file (.npz or .txt)")
+        f = resolve_path(path, sp.file)
+        if not f.is_file():
+            raise CaseError(path, "specimen.file", sp.file, f"file not found (looked for {f})")
+        return
+    from de_domain.packing import SIEVE_PRESETS
+    if (sp.sieve_diameters is None) != (sp.sieve_passing is None):
+        raise CaseError(path, "specimen.sieve_diameters / sieve_passing", (sp.sieve_diameters, sp.sieve_passing), "give both or neither")
+    if sp.sieve_diameters is None and sp.sieve not in SIEVE_PRESETS:
+        raise CaseError(path, "specimen.sieve", sp.sieve, f"allowed presets: {sorted(SIEVE_PRESETS)}")
+    try:
+        from de_domain.deposition import specimen_curve
+        curve = specimen_curve(sp.sieve, sp.sieve_diameters, sp.sieve_passing, sp.scale, sp.truncate_below, sp.truncate_above)
+    except ValueError as exc:
+        raise CaseError(path, "specimen", "sieve curve", str(exc)) from None
+    d_max = curve.diameters[-1]
+    if d_max >= 0.5 * ds.sample_height:
+        raise CaseError(path, "specimen.truncate_above", sp.truncate_above,
+                        f"the largest grain ({d_max * 1e3:.2f} mm after scaling) must be below half the sample height "
+                        f"({0.5e3 * ds.sample_height:.2f} mm); set truncate_above or a smaller scale")

@@ -1,4 +1,4 @@
-"""The ``cosim`` command line: ``run``, ``check``, ``info``, ``schema``.
+"""The ``cosim`` command line: ``run``, ``check``, ``series``, ``info``, ``schema``.
 
 Exit codes: 0 success, 2 bad input (case file, key, value named), 1 runtime failure.
 Under ``mpirun -n N`` every rank runs, only rank 0 prints.
@@ -30,6 +30,16 @@ def _parser():
     check.add_argument("case", metavar="CASE.toml")
     check.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
 
+    series = sub.add_parser("series", help="direct shear series: cases x normal stresses, Mohr-Coulomb fit",
+                            description="Run each direct_shear CASE (one specimen each, e.g. dense and loose) at every "
+                                        "normal stress and fit the Mohr-Coulomb envelope (phi, c) of peak and residual strength.")
+    series.add_argument("cases", metavar="CASE.toml", nargs="+", help="direct_shear case files")
+    series.add_argument("--stresses", type=float, nargs="+", default=[50e3, 100e3, 200e3], metavar="PA",
+                        help="normal stresses [Pa] (default 50e3 100e3 200e3)")
+    series.add_argument("--out", metavar="DIR", default="runs/out/direct_shear_series", help="output folder")
+    series.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override one value in every case; repeatable")
+
     sub.add_parser("info", help="versions of the stack, MPI size and Numba threads", description="Print versions of DOLFINx, Numba, mpi4py, petsc4py, gmsh, meshio, the MPI size and Numba threads.")
     sub.add_parser("schema", help="list every case-file key with its type, unit and default", description="Print the case-file schema: every key with its type, unit, default and allowed values.")
     return p
@@ -43,6 +53,14 @@ def main(argv=None):
             return _info()
         if args.command == "schema":
             return _schema()
+        if args.command == "series":
+            from cosim.lab.series import run_series
+            for stress in args.stresses:
+                if not stress > 0:
+                    raise CaseError("<command line>", "--stresses", stress, "normal stresses must be > 0 Pa")
+            run_series(args.cases, args.stresses, Path(args.out), args.overrides)
+            say(f"outputs: {Path(args.out).resolve()}")
+            return 0
         from cosim.case import load_case
         case, resolved = load_case(args.case, args.overrides)
         if args.command == "check":

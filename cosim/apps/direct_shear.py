@@ -1,0 +1,406 @@
+"""Case kind ``direct_shear``: the direct shear test of the thesis, Ch. 4 (DESIGN.md §3).
+
+The run, top to bottom:
+
+1. **Specimen** — a sieve curve (preset or custom, scaled, truncated) gives grains of
+   total volume V_s = L² h / (1 + e_target); multi-layer under-compaction or radius
+   expansion (``de_domain.deposition``) builds the specimen in the L × L box; it is
+   saved as ``specimen.npz`` (or loaded from ``[specimen] file``).
+2. **Shear box** — the box is split at h/2 into two facet-mesh halves with
+   frictionless side walls, a rough bottom plane and a rough top plate
+   (``cosim.lab.shear_box``); grains get their real density (no mass scaling here).
+3. **Consolidation** — the servo moves the top plate until σ_n = F_z / A is within
+   ``consolidation_tolerance`` of the target and the unbalanced force ratio is low.
+4. **Shearing** — the upper half and the top plate move in +x at the shear velocity
+   (ramped over ``ramp_distance``), the servo holding σ_n = F_z / A_c, until
+   δ = ``shear_distance``. A CSV row is written every ``shear_distance / rows`` with
+   values averaged over the steps since the previous row.
+5. **Report** — ``summary.json``/``summary.txt`` (peak and residual τ/σ_n and friction
+   angles, volume change, inertial number, servo error), PNG plots.
+
+Measured quantities (``series.csv``):
+  * τ = F_x / A_c with F_x the force the grains exert on the moving half (upper side
+    walls + top plate), A_c = L (L − δ); ``shear_stress_lower`` is the same from the
+    fixed half's reaction, a check;
+  * σ_n = F_z(top plate) / A_c (the servo holds this);
+  * vertical displacement of the top plate since the end of consolidation (up = +);
+  * void ratio of the whole sample e = L² z_plate / V_s − 1 and of two measuring
+    spheres at the sample centre (radii 0.45 h and 0.20 h; exact lens volumes);
+  * Love–Weber stress (compression +) of a slab of thickness b around the split plane
+    over the overlap x ∈ [δ, L]: its σ_zz and σ_xz compare with σ_n and τ;
+  * unbalanced force ratio and coordination number.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosim.case import resolve_path
+from cosim.errors import CaseError
+from cosim.outputs import CsvSeries, ProgressLine, atomic_write_text, is_root, mpi_comm, say, write_run_metadata
+
+COLUMNS = ["time", "shear_displacement", "shear_stress", "normal_stress", "vertical_displacement",
+           "void_ratio", "void_ratio_sphere_045h", "void_ratio_sphere_020h", "shear_stress_lower",
+           "lw_normal_stress", "lw_shear_stress", "unbalanced_force_ratio", "coordination_number",
+           "shear_velocity", "step"]
+
+
+# --------------------------------------------------------------------------- inputs
+def materials(case):
+    """de_domain Materials from [dem.materials] (as the ``dem`` app) and the ids of the
+    grains, side walls and plates."""
+    from de_domain import Material
+    names = [m.name for m in case.dem.materials]
+    mats = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in case.dem.materials]
+    ds = case.direct_shear
+    return mats, names.index(ds.sand_material), names.index(ds.side_wall_material), names.index(ds.plate_material)
+
+
+def curve_of(sp):
+    from de_domain.deposition import specimen_curve
+    return specimen_curve(sp.sieve, sp.sieve_diameters, sp.sieve_passing, sp.scale, sp.truncate_below,
+                          sp.truncate_above)
+
+
+def prepare(case, case_path):
+    """Everything that can fail on input, before any computation."""
+    sp, ds = case.specimen, case.direct_shear
+    built = {}
+    if sp.source == "file":
+        try:
+            built["packing"] = read_specimen(resolve_path(case_path, sp.file))
+        except Exception as exc:
+            raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
+        pos, radii, _, _ = built["packing"]
+        L = ds.box_length
+        if np.any(pos[:, :2] - radii[:, None] < -1e-9) or np.any(pos[:, :2] + radii[:, None] > L + 1e-9):
+            raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {L} m x {L} m box (x, y in [0, L])")
+    else:
+        try:
+            built["curve"] = curve_of(sp)
+        except ValueError as exc:
+            raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
+    return built
+
+
+def read_specimen(path):
+    """(positions, radii, height, void ratio or None) of a packing file; the height is
+    the stored plate height (npz from this app) or the top of the highest grain."""
+    from de_domain.packing import load_packing
+    pos, radii = load_packing(path)
+    height, e = None, None
+    if str(path).endswith(".npz"):
+        with np.load(path) as data:
+            height = float(data["height"]) if "height" in data else None
+            e = float(data["void_ratio"]) if "void_ratio" in data else None
+    if height is None:
+        height = float(np.max(pos[:, 2] + radii))
+    return pos, radii, height, e
+
+
+# --------------------------------------------------------------------------- 1. specimen
+def make_specimen(case, case_path, built, out_dir, cache=None):
+    """Load or generate the specimen; returns (positions, radii, height, info dict)."""
+    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
+    from de_domain.packing import save_packing
+    sp, ds = case.specimen, case.direct_shear
+    name = case.case.name
+    if cache is not None and Path(cache).exists():
+        pos, radii, height, e = read_specimen(cache)
+        say(f"[{name}] specimen from {cache}: {len(radii)} grains, h = {height * 1e3:.3f} mm, e = {e:.4f}")
+        return pos, radii, height, {"source": str(cache), "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
+    if sp.source == "file":
+        pos, radii, height, e = built["packing"]
+        say(f"[{name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
+        return pos, radii, height, {"source": sp.file, "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
+    mats, sand, wall, plate = materials(case)
+    L, H = ds.box_length, ds.sample_height
+    rng = np.random.default_rng(case.case.seed)
+    diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, L * L * H), rng)
+    say(f"[{name}] generating the specimen ({sp.method}): {len(diameters)} grains, "
+        f"d = {diameters.min() * 1e3:.2f}-{diameters.max() * 1e3:.2f} mm, target e = {sp.void_ratio}")
+    settings = GenerationSettings(
+        box_length=L, height=H, void_ratio=sp.void_ratio, sand=mats[sand], wall=mats[wall], plate=mats[plate],
+        friction=sp.deposition_friction, density_scale=sp.density_scale, gravity=tuple(case.dem.gravity),
+        local_damping=max(case.dem.local_damping, 0.5), safety_factor=case.time.safety_factor,
+        contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
+        plate_stress_limit=sp.plate_stress_limit, layers=sp.layers, undercompaction=sp.undercompaction,
+        cloud_solid_fraction=sp.cloud_solid_fraction, max_steps_per_layer=sp.max_steps_per_layer,
+        seed=case.case.seed)
+    t0 = time.perf_counter()
+    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"))
+    wall_clock = time.perf_counter() - t0
+    ok = abs(specimen.void_ratio - sp.void_ratio) <= sp.tolerance
+    say(f"[{name}] specimen: e = {specimen.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
+        f"{'OK' if ok else 'MISSED'}), h = {specimen.height * 1e3:.3f} mm, {specimen.steps} steps, {wall_clock:.0f} s")
+    for target in [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else []):
+        target.parent.mkdir(parents=True, exist_ok=True)
+        save_packing(target, specimen.positions, specimen.radii, height=specimen.height,
+                     void_ratio=specimen.void_ratio, method=specimen.method)
+    info = {"source": sp.method, "void_ratio_generated": specimen.void_ratio, "void_ratio_target": sp.void_ratio,
+            "void_ratio_within_tolerance": bool(ok), "generation_steps": specimen.steps,
+            "generation_wall_clock_s": wall_clock, "generation_log": specimen.log}
+    return specimen.positions, specimen.radii, specimen.height, info
+
+
+# --------------------------------------------------------------------------- 2. shear box
+class ShearTest:
+    """Engine + split box + servo for one direct shear test (steps 2–4 of the module docstring)."""
+
+    def __init__(self, case, positions, radii, height):
+        from de_domain import Engine, FacetMesh, Particles, PlaneWall
+        from cosim.lab.shear_box import ShearBoxGeometry, mass_median_diameter
+        self.case = case
+        ds = self.ds = case.direct_shear
+        mats, sand, wall, plate = materials(case)
+        self.young_grain, self.young_plate = mats[sand].young, mats[plate].young
+        self.density = mats[sand].density
+        self.L = ds.box_length
+        self.geometry = ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
+        particles = Particles.from_spheres(positions, radii, np.full(len(radii), sand, np.int32), mats)
+        self.lower = FacetMesh(*self.geometry.lower_half(), material=wall)
+        self.upper = FacetMesh(*self.geometry.upper_half(), material=wall)
+        self.bottom = PlaneWall((0, 0, 0), (0, 0, 1), material=plate)
+        self.plate = PlaneWall((0, 0, height), (0, 0, -1), material=plate)
+        dem = case.dem
+        self.engine = Engine(particles, mats, walls=[self.bottom, self.plate], facets=[self.lower, self.upper],
+                             contact_law=dem.contact_law, gravity=dem.gravity, dt=case.time.dt,
+                             safety_factor=case.time.safety_factor, local_damping=dem.local_damping,
+                             viscous_damping=dem.viscous_damping)
+        self.solid_volume = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
+        self.d50 = mass_median_diameter(radii)
+        self.height0 = height
+        self.x0 = self.upper.vertices[:, 0].copy()
+        self.stiffness = 0.0
+        self.shear_velocity = 0.0
+
+    # ---------------------------------------------------------------- measurements
+    @property
+    def displacement(self):
+        return float(np.mean(self.upper.vertices[:, 0] - self.x0))
+
+    def area(self):
+        from cosim.lab.shear_box import corrected_area
+        return corrected_area(self.L, self.displacement)
+
+    def normal_stress(self):
+        return float(self.plate.force[2]) / self.area()
+
+    def shear_stress(self):
+        """τ from the moving half: the grains push it back (−x), hence the sign."""
+        return -float(self.upper.force[0] + self.plate.force[0]) / self.area()
+
+    def shear_stress_lower(self):
+        return float(self.lower.force[0] + self.bottom.force[0]) / self.area()
+
+    def void_ratio(self):
+        return self.L * self.L * float(self.plate.point[2]) / self.solid_volume - 1.0
+
+    def sphere_void_ratios(self):
+        from de_domain.diagnostics import SphereRegion, void_ratio
+        h = self.height0
+        centre = (0.5 * self.L + 0.5 * self.displacement, 0.5 * self.L, 0.5 * h)
+        return (void_ratio(self.engine, SphereRegion(centre, 0.45 * h)),
+                void_ratio(self.engine, SphereRegion(centre, 0.20 * h)))
+
+    def love_weber_slab(self):
+        """(σ_zz, σ_xz) of the slab around the split plane over the overlap (compression +)."""
+        from de_domain.diagnostics import BoxRegion, love_weber_stress
+        b = self.ds.band_thickness or 4.0 * self.d50
+        zs = self.geometry.split_height
+        region = BoxRegion((self.displacement, 0.0, zs - 0.5 * b), (self.L, self.L, zs + 0.5 * b))
+        s = love_weber_stress(self.engine, region)
+        return float(s[2, 2]), float(0.5 * (s[0, 2] + s[2, 0]))
+
+    # ---------------------------------------------------------------- servo step
+    def update_stiffness(self):
+        from cosim.lab.shear_box import plate_contact_stiffness
+        self.stiffness = plate_contact_stiffness(self.engine.contacts(), 1, self.engine.particles.radius,
+                                                 self.young_grain, self.young_plate)
+
+    def step(self, target):
+        """One DEM step with the plate velocity from the servo law (σ of the last step)."""
+        from cosim.lab.shear_box import servo_velocity
+        ds = self.ds
+        if self.engine.step_count % 25 == 0:
+            self.update_stiffness()
+        vz = servo_velocity(self.normal_stress(), target, self.area(), self.stiffness, self.engine.dt,
+                            ds.servo_gain, ds.servo_max_velocity)
+        self.plate.velocity = np.array([self.shear_velocity, 0.0, vz])
+        self.upper.velocity = np.array([self.shear_velocity, 0.0, 0.0])
+        self.engine.step()
+
+    # ---------------------------------------------------------------- 3. consolidation
+    def consolidate(self, log):
+        from de_domain.diagnostics import unbalanced_force_ratio
+        ds = self.ds
+        target = ds.normal_stress
+        window = []
+        for n in range(1, ds.max_consolidation_steps + 1):
+            self.step(target)
+            window.append(self.normal_stress())
+            if n % 100 == 0:
+                mean = float(np.mean(window[-100:]))
+                if abs(mean - target) < ds.consolidation_tolerance * target:
+                    uf = unbalanced_force_ratio(self.engine)
+                    if uf < ds.consolidation_unbalanced_force:
+                        log(f"consolidated to σ_n = {mean:.4g} Pa in {n} steps (unbalanced force {uf:.3g}), "
+                            f"e = {self.void_ratio():.4f}")
+                        return n
+        log(f"consolidation stopped after {ds.max_consolidation_steps} steps: σ_n = {self.normal_stress():.4g} Pa, "
+            f"unbalanced force {unbalanced_force_ratio(self.engine):.3g}")
+        return ds.max_consolidation_steps
+
+
+def _record(test, sums, n, z0):
+    from de_domain.diagnostics import coordination_number, unbalanced_force_ratio
+    e1, e2 = test.sphere_void_ratios()
+    lw_zz, lw_xz = test.love_weber_slab()
+    return [test.engine.time, test.displacement, sums[0] / n, sums[1] / n, float(test.plate.point[2]) - z0,
+            test.void_ratio(), e1, e2, sums[2] / n, lw_zz, lw_xz, unbalanced_force_ratio(test.engine),
+            coordination_number(test.engine), test.shear_velocity, test.engine.step_count]
+
+
+# --------------------------------------------------------------------------- the run
+def run(case, resolved, case_path, out_dir, resume=False, specimen_cache=None):
+    if resume:
+        raise CaseError(case_path, "--resume", True, "a direct_shear run cannot be resumed; run it again")
+    out_dir = Path(out_dir)
+    if is_root():
+        built = prepare(case, case_path)
+        _run_root(case, resolved, case_path, out_dir, built, specimen_cache)
+    mpi_comm().Barrier()
+
+
+def _run_root(case, resolved, case_path, out_dir, built, specimen_cache):
+    from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
+    from cosim.lab.shear_report import plot_run, read_series, summarize
+    name, ds = case.case.name, case.direct_shear
+    log = lambda text: say(f"[{name}] {text}")  # noqa: E731
+    write_run_metadata(out_dir, case_path, resolved, case.case.seed)
+    t_start = time.perf_counter()
+
+    # 1. specimen
+    positions, radii, height, specimen_info = make_specimen(case, case_path, built, out_dir, specimen_cache)
+
+    # 2. shear box
+    test = ShearTest(case, positions, radii, height)
+    engine = test.engine
+    log(f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
+        f"{engine.particles.n} grains (d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s")
+
+    # 3. consolidation
+    t0 = time.perf_counter()
+    consolidation_steps = test.consolidate(log)
+    e_consolidated = test.void_ratio()
+    z0 = float(test.plate.point[2])
+
+    # 4. shearing
+    v = ds.shear_velocity or velocity_for_inertial_number(ds.inertial_number, height, test.d50, test.density,
+                                                          ds.normal_stress)
+    inertial = inertial_number(v, height, test.d50, test.density, ds.normal_stress)
+    total_steps = int(math.ceil((ds.shear_distance + 0.5 * ds.ramp_distance) / (v * engine.dt)))
+    log(f"shearing at v = {v:.4g} m/s (inertial number I = {inertial:.2e}) to δ = {ds.shear_distance * 1e3:.2f} mm: "
+        f"about {total_steps} steps")
+    series = CsvSeries(out_dir / "series.csv", COLUMNS)
+    frames = _frames(case, out_dir)
+    frames(engine, 0)
+    progress = ProgressLine(name, engine.step_count + total_steps, case.output.progress_interval,
+                            first_step=engine.step_count)
+    row_spacing = ds.shear_distance / ds.rows
+    next_row = 0.0
+    sums, n = np.zeros(3), 0
+    servo_errors = []
+    while True:
+        delta = test.displacement
+        ramp = min(1.0, max(0.02, delta / ds.ramp_distance)) if ds.ramp_distance > 0 else 1.0
+        test.shear_velocity = v * ramp
+        test.step(ds.normal_stress)
+        sums += (test.shear_stress(), test.normal_stress(), test.shear_stress_lower())
+        n += 1
+        delta = test.displacement
+        if delta >= next_row or delta >= ds.shear_distance:
+            row = _record(test, sums, n, z0)
+            series.append(row)
+            if delta > ds.ramp_distance:
+                servo_errors.append(abs(row[3] - ds.normal_stress) / ds.normal_stress)
+            sums, n = np.zeros(3), 0
+            next_row += row_spacing
+            frames(engine, delta)
+        progress.update(engine.step_count, engine.time)
+        if delta >= ds.shear_distance:
+            break
+    progress.update(engine.step_count, engine.time, force=True)
+    series.close()
+    shear_wall_clock = time.perf_counter() - t0
+
+    # 5. report
+    data = read_series(out_dir / "series.csv")
+    summary = summarize(data["shear_displacement"], data["shear_stress"], data["normal_stress"],
+                        data["vertical_displacement"], ds.residual_fraction)
+    after = data["shear_displacement"] > ds.ramp_distance
+    lw_ratio = lambda a, b: float(np.mean(a[after]) / np.mean(b[after]))  # noqa: E731
+    summary.update({
+        "case": name, "grains": int(engine.particles.n), "d50": test.d50, "sample_height": height,
+        "normal_stress": ds.normal_stress, "shear_velocity": v, "inertial_number": inertial, "dt": engine.dt,
+        "steps_consolidation": consolidation_steps, "steps_shear": int(engine.step_count - consolidation_steps),
+        "void_ratio_consolidated": e_consolidated, "void_ratio_end": float(data["void_ratio"][-1]),
+        "void_ratio_sphere_045h_end": float(data["void_ratio_sphere_045h"][-1]),
+        "void_ratio_sphere_020h_end": float(data["void_ratio_sphere_020h"][-1]),
+        "servo_max_relative_error": float(max(servo_errors)) if servo_errors else None,
+        "servo_mean_relative_error": float(np.mean(servo_errors)) if servo_errors else None,
+        "love_weber_normal_over_wall": lw_ratio(data["lw_normal_stress"], data["normal_stress"]),
+        "love_weber_shear_over_wall": lw_ratio(np.abs(data["lw_shear_stress"]), data["shear_stress"]),
+        "shear_lower_over_upper": lw_ratio(data["shear_stress_lower"], data["shear_stress"]),
+        "wall_clock_shear_s": shear_wall_clock, "wall_clock_total_s": time.perf_counter() - t_start,
+        **{k: v for k, v in specimen_info.items() if k != "generation_log"},
+    })
+    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
+    atomic_write_text(out_dir / "summary.txt", summary_text(summary))
+    plot_run(data, out_dir, f"{name}: σ_n = {ds.normal_stress / 1e3:.0f} kPa")
+    for line in summary_text(summary).splitlines():
+        log(line)
+    return summary
+
+
+def summary_text(s):
+    servo = s["servo_max_relative_error"]
+    return "\n".join([
+        f"grains {s['grains']}, d50 {s['d50'] * 1e3:.2f} mm, h {s['sample_height'] * 1e3:.2f} mm, "
+        f"sigma_n {s['normal_stress'] / 1e3:.0f} kPa",
+        f"void ratio: generated {s.get('void_ratio_generated') or float('nan'):.4f}, consolidated "
+        f"{s['void_ratio_consolidated']:.4f}, end {s['void_ratio_end']:.4f} "
+        f"(sphere 0.45h {s['void_ratio_sphere_045h_end']:.4f}, sphere 0.20h {s['void_ratio_sphere_020h_end']:.4f})",
+        f"peak tau/sigma_n {s['peak_stress_ratio']:.3f} (phi_peak {s['peak_friction_angle_deg']:.1f} deg) at "
+        f"delta {s['peak_shear_displacement'] * 1e3:.2f} mm; residual {s['residual_stress_ratio']:.3f} "
+        f"(phi_res {s['residual_friction_angle_deg']:.1f} deg)",
+        f"vertical displacement at the end {s['vertical_displacement_end'] * 1e3:+.3f} mm ({s['volume_change']}), "
+        f"softening: {s['softening']}",
+        f"shear velocity {s['shear_velocity']:.3g} m/s, inertial number {s['inertial_number']:.2e}, dt {s['dt']:.3e} s, "
+        f"steps {s['steps_consolidation']} + {s['steps_shear']}",
+        f"servo |sigma - sigma_n|/sigma_n: max {servo if servo is not None else float('nan'):.4f} over the CSV rows; "
+        f"Love-Weber/wall: normal {s['love_weber_normal_over_wall']:.3f}, shear {s['love_weber_shear_over_wall']:.3f}; "
+        f"lower/upper shear force {s['shear_lower_over_upper']:.3f}",
+        f"wall clock: shear {s['wall_clock_shear_s']:.0f} s, total {s['wall_clock_total_s']:.0f} s",
+    ]) + "\n"
+
+
+def _frames(case, out_dir, count=10):
+    """ParaView frames (particles + both box halves) at ``count`` points of the shear."""
+    if not case.output.vtk:
+        return lambda engine, delta: None
+    from de_domain.io import write_frame
+    from cosim.apps.dem import _FrameIndex
+    index = _FrameIndex(out_dir, resume=False)
+    spacing = case.direct_shear.shear_distance / count
+    state = {"next": 0.0}
+
+    def write(engine, delta):
+        if delta >= state["next"] - 1e-12:
+            index.add(engine.time, write_frame(out_dir / "frames", engine, engine.step_count))
+            state["next"] += spacing
+    return write

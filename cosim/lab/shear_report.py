@@ -1,0 +1,145 @@
+"""Direct shear results: the run summary, the standard plots and the Mohr–Coulomb fit
+(DESIGN.md §3). Pure post-processing of the CSV columns; no engine here."""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+def read_series(path):
+    """CSV → dict of float arrays by column name."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]} if rows else {}
+
+
+def friction_angle(stress_ratio):
+    """φ = atan(τ/σ_n) in degrees."""
+    return math.degrees(math.atan(stress_ratio))
+
+
+def summarize(delta, tau, sigma, dz, residual_fraction=0.2):
+    """Peak and residual τ/σ_n with their friction angles, and the volume change sign.
+
+    ``delta`` shear displacement [m], ``tau``/``sigma`` stresses [Pa], ``dz`` vertical
+    displacement of the top plate [m] (up = dilation). Residual = mean over the last
+    ``residual_fraction`` of the shear displacement.
+    """
+    delta, tau, sigma, dz = (np.asarray(a, float) for a in (delta, tau, sigma, dz))
+    ratio = tau / sigma
+    k = int(np.argmax(ratio))
+    last = delta >= delta[-1] - residual_fraction * (delta[-1] - delta[0])
+    peak, residual = float(ratio[k]), float(np.mean(ratio[last]))
+    return {
+        "peak_stress_ratio": peak, "peak_friction_angle_deg": friction_angle(peak),
+        "peak_shear_displacement": float(delta[k]), "peak_shear_stress": float(tau[k]),
+        "residual_stress_ratio": residual, "residual_friction_angle_deg": friction_angle(residual),
+        "residual_shear_stress": float(np.mean(tau[last])),
+        "vertical_displacement_end": float(dz[-1]), "vertical_displacement_min": float(np.min(dz)),
+        "vertical_displacement_max": float(np.max(dz)),
+        "volume_change": "dilation" if dz[-1] > 0 else "contraction",
+        "softening": bool(peak > 1.05 * residual),
+    }
+
+
+def mohr_coulomb_fit(normal_stress, shear_stress):
+    """Least-squares τ = c + σ_n tan φ; returns (φ [deg], c [Pa], R²).
+
+    With a single point the envelope goes through the origin (c = 0)."""
+    s, t = np.asarray(normal_stress, float), np.asarray(shear_stress, float)
+    if len(s) == 1:
+        return friction_angle(t[0] / s[0]), 0.0, 1.0
+    slope, c = np.polyfit(s, t, 1)
+    pred = c + slope * s
+    ss = float(np.sum((t - t.mean()) ** 2))
+    r2 = 1.0 - float(np.sum((t - pred) ** 2)) / ss if ss > 0 else 1.0
+    return math.degrees(math.atan(slope)), float(c), r2
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_run(series, out_dir, title):
+    """shear_stress.png (τ–δ), vertical_displacement.png, void_ratio.png (e–δ) in ``out_dir``."""
+    plt = _plt()
+    out_dir = Path(out_dir)
+    d = series["shear_displacement"] * 1e3
+    paths = []
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(d, series["shear_stress"] / 1e3, label="τ (shear force / A_c)")
+    ax.plot(d, series["normal_stress"] / 1e3, "--", lw=0.8, label="σ_n (servo)")
+    ax.set(xlabel="shear displacement δ [mm]", ylabel="stress [kPa]", title=title)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    paths.append(_save(fig, out_dir / "shear_stress.png"))
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(d, series["vertical_displacement"] * 1e3)
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set(xlabel="shear displacement δ [mm]", ylabel="vertical displacement of the top plate [mm] (+ = dilation)",
+           title=title)
+    ax.grid(True, alpha=0.3)
+    paths.append(_save(fig, out_dir / "vertical_displacement.png"))
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(d, series["void_ratio"], label="whole sample")
+    ax.plot(d, series["void_ratio_sphere_045h"], label="measuring sphere r = 0.45 h")
+    ax.plot(d, series["void_ratio_sphere_020h"], label="measuring sphere r = 0.20 h (shear zone)")
+    ax.set(xlabel="shear displacement δ [mm]", ylabel="void ratio e [-]", title=title)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    paths.append(_save(fig, out_dir / "void_ratio.png"))
+    return paths
+
+
+def _save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    _plt().close(fig)
+    return path
+
+
+def plot_series(results, fits, path):
+    """Mohr–Coulomb envelopes: peak (filled) and residual (open) τ against σ_n per specimen."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, (label, rows) in enumerate(results.items()):
+        c = colors[k % len(colors)]
+        s = np.array([r["normal_stress"] for r in rows]) / 1e3
+        ax.plot(s, [r["peak_shear_stress"] / 1e3 for r in rows], "o", color=c)
+        ax.plot(s, [r["residual_shear_stress"] / 1e3 for r in rows], "s", mfc="none", color=c)
+        xs = np.linspace(0, s.max() * 1.1, 20)
+        for kind, ls in (("peak", "-"), ("residual", ":")):
+            phi, coh, _ = fits[label][kind]
+            ax.plot(xs, coh / 1e3 + xs * math.tan(math.radians(phi)), ls, color=c,
+                    label=f"{label} {kind}: φ = {phi:.1f}°, c = {coh / 1e3:.1f} kPa")
+    ax.set(xlabel="normal stress σ_n [kPa]", ylabel="shear stress τ [kPa]", title="Mohr–Coulomb envelopes")
+    ax.set_xlim(left=0)
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, Path(path))
+
+
+def plot_series_curves(curves, path):
+    """τ/σ_n–δ, vertical displacement–δ and shear-zone void ratio–δ of every run of a series."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    for label, s in curves.items():
+        d = s["shear_displacement"] * 1e3
+        axes[0].plot(d, s["shear_stress"] / s["normal_stress"], label=label)
+        axes[1].plot(d, s["vertical_displacement"] * 1e3, label=label)
+        axes[2].plot(d, s["void_ratio_sphere_020h"], label=label)
+    axes[0].set(xlabel="δ [mm]", ylabel="τ/σ_n [-]")
+    axes[1].set(xlabel="δ [mm]", ylabel="vertical displacement [mm]")
+    axes[2].set(xlabel="δ [mm]", ylabel="void ratio, sphere 0.20 h [-]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    return _save(fig, Path(path))
