@@ -125,9 +125,17 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     progress.update(engine.step_count, engine.time, force=True)
     _checkpoint(engine, checkpoint)
     series.close()
+    from cosim.plots import plot_panels
+    plot_panels(out_dir / "series.csv", "time", [
+        ("kinetic energy [J]", ["kinetic"], True),
+        ("unbalanced force ratio [-]", ["unbalanced_force_ratio"], True),
+        ("coordination number [-]", ["coordination_number"], False),
+        ("energy [J]", ["dissipated", "work", "residual"], False),
+    ], out_dir / "series.png", title=case.case.name)
     e = engine.energy()
+    scale = max(abs(e["dissipated"]) + abs(e["work"]), 1e-300)
     say(f"[{case.case.name}] done: t = {engine.time:.4e} s, kinetic energy {e['kinetic']:.3e} J, "
-        f"energy balance residual {e['residual']:.3e} J")
+        f"energy balance residual {e['residual']:.3e} J ({100 * abs(e['residual']) / scale:.2f} % of work + dissipation)")
 
 
 def _checkpoint(engine, path):
