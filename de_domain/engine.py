@@ -145,8 +145,8 @@ class Engine:
         nl = self.neighbors
         # 3. sphere–sphere contacts, then per-particle sums (this resets force/torque)
         pair_energy = np.zeros(((nl.pair_i.size + PAIR_BLOCK - 1) // PAIR_BLOCK, PAIR_N_ENERGY))
-        sphere_pair_forces(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.material, self.young,
-                           self.pair_params, nl.pair_i, nl.pair_j, nl.history, self.pair_force,
+        sphere_pair_forces(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
+                           p.material, self.young, self.pair_params, nl.pair_i, nl.pair_j, nl.history, self.pair_force,
                            self.pair_torque_i, self.pair_torque_j, self.pair_overlap, pair_energy)
         sum_pair_forces(p.n_owned, nl.i_start, nl.j_start, nl.j_pairs, self.pair_force, self.pair_torque_i,
                         self.pair_torque_j, p.force, p.torque)
@@ -156,8 +156,8 @@ class Engine:
         facet_energy = np.zeros((n_blocks, WALL_N_ENERGY))
         if self.walls:
             wall_force = np.zeros((n_blocks, len(self.walls), 3))
-            plane_wall_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.material, p.n_owned,
-                                self.young, self.pair_params,
+            plane_wall_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
+                                p.material, p.n_owned, self.young, self.pair_params,
                                 np.array([w.point for w in self.walls]), np.array([w.normal for w in self.walls]),
                                 np.array([w.velocity for w in self.walls]),
                                 np.array([w.material for w in self.walls], np.int32),
@@ -166,8 +166,8 @@ class Engine:
             for w, wall in enumerate(self.walls):
                 wall.force = totals[w].copy()
         if self.facets:
-            facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.material, p.n_owned,
-                           self.young, self.pair_params, vertices, vertex_vel, self._triangles,
+            facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
+                           p.material, p.n_owned, self.young, self.pair_params, vertices, vertex_vel, self._triangles,
                            self._triangle_edges, self._triangle_material, nl.f_start, nl.f_tri,
                            nl.facet_history, p.force, p.torque, self.facet_force, self.facet_lambda,
                            facet_energy)
@@ -177,8 +177,8 @@ class Engine:
         # 5. gravity, background damping, leapfrog
         integrate_energy = np.zeros(((p.n_owned + INTEGRATE_BLOCK - 1) // INTEGRATE_BLOCK, INTEGRATE_N_ENERGY))
         leapfrog(dt, self.gravity, self.local_damping, self.viscous_damping, p.n_owned, p.pos, p.vel,
-                 self.acceleration, p.angvel, p.mass, p.inertia, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
-                 p.torque, integrate_energy)
+                 self.acceleration, p.angvel, p.mass, p.inertia, p.blocked, p.prescribed,
+                 p.prescribed_velocity, p.force, p.torque, integrate_energy)
         # 6. energy record (sums in block order: deterministic)
         pe = pair_energy.sum(axis=0) if pair_energy.size else np.zeros(PAIR_N_ENERGY)
         we = wall_energy.sum(axis=0) + facet_energy.sum(axis=0)
@@ -191,7 +191,7 @@ class Engine:
                         "contact_damping": pe[4] + we[5], "background_damping": ie[3]})
         # 7. boundaries advance
         for wall in self.walls:
-            wall.point += wall.velocity * dt
+            wall.point = wall.point + wall.velocity * dt
             wall._engine_point = wall.point.copy()
         for mesh in self.facets:
             mesh.vertices += mesh.vertex_velocity * dt

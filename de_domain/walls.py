@@ -46,9 +46,25 @@ class PlaneWall:
             raise ValueError("PlaneWall: 'normal' must be a non-zero vector")
         self.normal = normal / norm
         self.material = int(material)
-        self.velocity = np.array(velocity, dtype=np.float64).reshape(3)
+        self.velocity = velocity
         self.force = np.zeros(3)
         self._engine_point = self.point.copy()
+
+    @property
+    def point(self):
+        return self._point
+
+    @point.setter
+    def point(self, value):
+        self._point = np.array(value, dtype=np.float64).reshape(3)
+
+    @property
+    def velocity(self):
+        return self._velocity
+
+    @velocity.setter
+    def velocity(self, value):
+        self._velocity = np.array(value, dtype=np.float64).reshape(3)
 
 
 class FacetMesh:
