@@ -52,6 +52,7 @@ def test_run_writes_series_frames_and_provenance(tmp_path):
     assert float(series[-1]["step"]) == 400
     times = [float(r["time"]) for r in series]
     assert times == sorted(times) and times[0] == 0.0
+    assert (out / "series.png").stat().st_size > 10_000
     # ParaView: a valid PVD whose frames exist
     datasets = ET.parse(out / "particles.pvd").getroot().iter("DataSet")
     files = [out / d.get("file") for d in datasets]
