@@ -15,6 +15,7 @@ schema with units.
 from __future__ import annotations
 
 import copy
+import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Literal, Optional
@@ -33,8 +34,9 @@ class _Section(BaseModel):
 # --------------------------------------------------------------------------- case
 class CaseInfo(_Section):
     name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
-    kind: Literal["dem", "direct_shear"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls), "
-                                                  "'direct_shear' (specimen generation + the direct shear test, DESIGN §3)")
+    kind: Literal["dem", "direct_shear", "fe"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls), "
+                                                        "'direct_shear' (specimen generation + the direct shear test, DESIGN §3), "
+                                                        "'fe' (the explicit mixed u-p solid on a gmsh mesh, DESIGN §4)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -138,6 +140,49 @@ class DirectShearSection(_Section):
     band_thickness: float = Field(default=0.0, ge=0, description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 4 d50")
 
 
+# --------------------------------------------------------------------------- fe
+class FeMaterial(_Section):
+    E: float = Field(gt=0, description="Young's modulus [Pa]")
+    nu: float = Field(ge=0, lt=0.5, description="Poisson's ratio [-] (mixed u-p default alpha_tau is stable up to 0.499)")
+    rho: float = Field(gt=0, description="density [kg/m^3]")
+    group: Optional[str] = Field(default=None, description="cell physical-group name this material fills; omit for the whole mesh")
+
+
+class FeBoundaryCondition(_Section):
+    type: Literal["fixed", "velocity"] = Field(description="'fixed' (zero displacement) or 'velocity' (prescribed velocity)")
+    boundary: str = Field(min_length=1, description="facet physical-group name in the mesh")
+    components: list[Annotated[int, Field(ge=0, le=2)]] = Field(default=[0, 1, 2], min_length=1, max_length=3, description="constrained components, 0=x 1=y 2=z")
+    velocity: Optional[Vec3] = Field(default=None, description="prescribed velocity for type='velocity' [m/s]")
+    ramp: Optional[float] = Field(default=None, gt=0, description="time over which the velocity rises linearly from 0 [s]")
+
+
+class FeLoad(_Section):
+    type: Literal["traction", "pressure", "body_force"] = Field(description="'traction' (vector), 'pressure' (normal, compressive > 0) on a boundary, or 'body_force'")
+    boundary: Optional[str] = Field(default=None, description="facet physical-group name (traction, pressure)")
+    traction: Optional[Vec3] = Field(default=None, description="traction vector for type='traction' [Pa]")
+    pressure: Optional[float] = Field(default=None, description="normal pressure for type='pressure' [Pa]")
+    acceleration: Optional[Vec3] = Field(default=None, description="body acceleration for type='body_force' [m/s^2]")
+    ramp: Optional[float] = Field(default=None, gt=0, description="time over which the load rises linearly from 0 [s]")
+
+
+class FeDamping(_Section):
+    type: Literal["local", "mass"] = Field(description="'local' non-viscous (alpha in [0,1)) or 'mass'-proportional (alpha in 1/s)")
+    alpha: float = Field(ge=0, description="damping coefficient: local [-] or mass-proportional [1/s]")
+
+
+class FeSection(_Section):
+    mesh: str = Field(min_length=1, description="gmsh .geo source or .msh file, relative to the case file or a name in meshes/")
+    mesh_size: Optional[float] = Field(default=None, gt=0, description="target element size for a .geo source [m]")
+    geometry_parameters: dict[str, float] = Field(default_factory=dict, description="overrides of the .geo DefineConstant values [m]")
+    formulation: Literal["mixed", "displacement"] = Field(default="mixed", description="'mixed' u-p with OSS stabilisation, or pure-displacement P1")
+    alpha_tau: Optional[float] = Field(default=None, gt=0, description="stabilisation factor in tau_e = alpha_tau h_e^2/(2G) [-]; default stable up to nu = 0.499")
+    materials: list[FeMaterial] = Field(min_length=1, description="[[fe.materials]] tables")
+    boundary_conditions: list[FeBoundaryCondition] = Field(default_factory=list, description="[[fe.boundary_conditions]] tables")
+    loads: list[FeLoad] = Field(default_factory=list, description="[[fe.loads]] tables")
+    damping: Optional[FeDamping] = Field(default=None, description="[fe.damping] for quasi-static runs")
+    reactions: list[str] = Field(default_factory=list, description="facet groups whose reaction force is written to the series CSV")
+
+
 class Case(_Section):
     case: CaseInfo
     time: TimeSection
@@ -145,6 +190,7 @@ class Case(_Section):
     dem: Optional[DemSection] = None
     specimen: Optional[SpecimenSection] = None
     direct_shear: Optional[DirectShearSection] = None
+    fe: Optional[FeSection] = None
 
 
 # --------------------------------------------------------------------------- loading
@@ -271,6 +317,70 @@ def _check_consistency(path, case):
         if case.dem is None:
             raise CaseError(path, "dem", None, "a case of kind 'dem' needs a [dem] section")
         _check_dem(path, case.dem)
+    if case.case.kind == "fe":
+        if case.fe is None:
+            raise CaseError(path, "fe", None, "a case of kind 'fe' needs an [fe] section")
+        _check_fe(path, case.fe)
+
+
+def mesh_path(case_file, name):
+    """A mesh named in a case: relative to the case file, else in the project's meshes/ folder."""
+    local = resolve_path(case_file, name)
+    if local.exists():
+        return local
+    return Path(__file__).resolve().parent.parent / "meshes" / name
+
+
+def physical_groups(mesh_file):
+    """``{name: dim}`` of the physical groups a .geo source or .msh file declares (text scan, no meshing)."""
+    text = Path(mesh_file).read_text(errors="replace")
+    if Path(mesh_file).suffix == ".geo":
+        dims = {"Point": 0, "Curve": 1, "Line": 1, "Surface": 2, "Volume": 3}
+        return {m.group(2): dims[m.group(1)] for m in re.finditer(r'Physical\s+(Point|Curve|Line|Surface|Volume)\s*\(\s*"([^"]+)"', text)}
+    block = re.search(r"\$PhysicalNames\s*\n\s*\d+\s*\n(.*?)\$EndPhysicalNames", text, re.S)
+    if block is None:
+        return {}
+    return {m.group(3): int(m.group(1)) for m in re.finditer(r'(\d+)\s+(\d+)\s+"([^"]+)"', block.group(1))}
+
+
+def _check_fe(path, fe):
+    mesh = mesh_path(path, fe.mesh)
+    if not mesh.is_file():
+        raise CaseError(path, "fe.mesh", fe.mesh, f"mesh not found (looked for {resolve_path(path, fe.mesh)} and {mesh})")
+    if mesh.suffix not in (".geo", ".msh"):
+        raise CaseError(path, "fe.mesh", fe.mesh, "allowed formats: gmsh .geo source or .msh mesh")
+    if mesh.suffix == ".geo" and fe.mesh_size is None:
+        raise CaseError(path, "fe.mesh_size", None, "a .geo source needs a mesh size > 0 [m]")
+    groups = physical_groups(mesh)
+    surfaces = sorted(n for n, d in groups.items() if d == 2)
+    volumes = sorted(n for n, d in groups.items() if d == 3)
+
+    def check_surface(key, name):
+        if name not in surfaces:
+            raise CaseError(path, key, name, f"not a surface physical group of {mesh.name}; available: {surfaces}")
+
+    whole = [i for i, m in enumerate(fe.materials) if m.group is None]
+    if whole and len(fe.materials) > 1:
+        raise CaseError(path, f"fe.materials[{whole[0]}].group", None, "with several materials each needs its cell group")
+    for i, m in enumerate(fe.materials):
+        if m.group is not None and m.group not in volumes:
+            raise CaseError(path, f"fe.materials[{i}].group", m.group, f"not a volume physical group of {mesh.name}; available: {volumes}")
+    for i, bc in enumerate(fe.boundary_conditions):
+        check_surface(f"fe.boundary_conditions[{i}].boundary", bc.boundary)
+        if bc.type == "velocity" and bc.velocity is None:
+            raise CaseError(path, f"fe.boundary_conditions[{i}].velocity", None, "type = 'velocity' needs velocity = [vx, vy, vz] [m/s]")
+    needs = {"traction": "traction", "pressure": "pressure", "body_force": "acceleration"}
+    for i, load in enumerate(fe.loads):
+        if getattr(load, needs[load.type]) is None:
+            raise CaseError(path, f"fe.loads[{i}].{needs[load.type]}", None, f"type = '{load.type}' needs {needs[load.type]}")
+        if load.type != "body_force":
+            if load.boundary is None:
+                raise CaseError(path, f"fe.loads[{i}].boundary", None, f"type = '{load.type}' needs a boundary")
+            check_surface(f"fe.loads[{i}].boundary", load.boundary)
+    for i, name in enumerate(fe.reactions):
+        check_surface(f"fe.reactions[{i}]", name)
+    if fe.damping is not None and fe.damping.type == "local" and fe.damping.alpha >= 1:
+        raise CaseError(path, "fe.damping.alpha", fe.damping.alpha, "local non-viscous damping needs 0 <= alpha < 1")
 
 
 def _check_dem(path, dem):

@@ -340,6 +340,30 @@ class ExplicitSolid:
             if callback is not None:
                 callback(self)
 
+    # ------------------------------------------------------------------ checkpoints
+    def checkpoint_state(self) -> dict:
+        """This rank's state (u, v, p, clock, energy accumulators) as arrays, for ``np.savez``.
+
+        π needs no saving: step 1 recomputes it from p. Restore on the same mesh and rank count.
+        """
+        return {"displacement": self.displacement.copy(), "velocity": self.velocity.copy(),
+                "pressure": self.pressure.copy(), "velocity_change": self._velocity_change.copy(),
+                "clock": np.array([self.time, self.step_count, self.dt]),
+                "energy_accumulators": np.array([self._external_work, self._damping_work,
+                                                 self._stabilisation_dissipation])}
+
+    def restore_state(self, state) -> None:
+        """Inverse of :meth:`checkpoint_state`."""
+        if state["displacement"].shape != self.displacement.shape:
+            raise ValueError("checkpoint was written for another mesh or rank count")
+        self.displacement[:] = state["displacement"]
+        self.velocity[:] = state["velocity"]
+        self.pressure[:] = state["pressure"]
+        self._velocity_change[:] = state["velocity_change"]
+        self.time, step_count, self.dt = state["clock"]
+        self.step_count = int(step_count)
+        self._external_work, self._damping_work, self._stabilisation_dissipation = state["energy_accumulators"]
+
     # ------------------------------------------------------------------ energies
     def energy_due(self) -> bool:
         return self.energy_interval > 0 and self.step_count % self.energy_interval == 0

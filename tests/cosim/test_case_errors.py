@@ -151,3 +151,46 @@ def test_run_rejects_bad_input_before_creating_outputs(tmp_path, base):
     out = tmp_path / "out"
     assert main(["run", str(path), "--out", str(out)]) == EXIT_BAD_INPUT
     assert not out.exists()
+
+
+FE = Path(__file__).parents[2] / "runs" / "fe_footing.toml"
+
+
+@pytest.fixture
+def fe_base():
+    return tomllib.loads(FE.read_text())
+
+
+def test_fe_demo_case_is_valid():
+    assert main(["check", str(FE)]) == 0
+
+
+def test_fe_unknown_boundary_name_lists_the_mesh_groups(tmp_path, fe_base):
+    fe_base["fe"]["boundary_conditions"][0]["boundary"] = "soil_botom"
+    expect_error(tmp_path, fe_base, "fe.boundary_conditions[0].boundary", "'soil_botom'",
+                 "not a surface physical group of footing.geo; available: ['footing_top', 'interface', 'soil_bottom'")
+
+
+def test_fe_unknown_material_group(tmp_path, fe_base):
+    fe_base["fe"]["materials"][1]["group"] = "plate"
+    expect_error(tmp_path, fe_base, "fe.materials[1].group", "'plate'", "available: ['footing', 'soil']")
+
+
+def test_fe_missing_mesh(tmp_path, fe_base):
+    fe_base["fe"]["mesh"] = "dam.geo"
+    expect_error(tmp_path, fe_base, "fe.mesh", "'dam.geo'", "mesh not found")
+
+
+def test_fe_geo_needs_mesh_size(tmp_path, fe_base):
+    del fe_base["fe"]["mesh_size"]
+    expect_error(tmp_path, fe_base, "fe.mesh_size", "None", "needs a mesh size")
+
+
+def test_fe_velocity_condition_needs_velocity(tmp_path, fe_base):
+    fe_base["fe"]["boundary_conditions"][0]["type"] = "velocity"
+    expect_error(tmp_path, fe_base, "fe.boundary_conditions[0].velocity", "None", "needs velocity")
+
+
+def test_fe_poisson_ratio_range(tmp_path, fe_base):
+    fe_base["fe"]["materials"][0]["nu"] = 0.5
+    expect_error(tmp_path, fe_base, "fe.materials[0].nu", "0.5", "less than 0.5")

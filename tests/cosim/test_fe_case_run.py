@@ -1,0 +1,79 @@
+"""``cosim run`` on small ``fe`` cases: static equilibrium, bit-exact resume, 1 vs 2 ranks."""
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+ROOT = Path(__file__).parents[2]
+COSIM = Path(sys.executable).parent / "cosim"
+ENV = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+       "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+PRESSURE = 50.0e3  # Pa on the 1 x 1 m top face
+
+
+def block_case(tmp_path, steps=1500, **time):
+    data = {
+        "case": {"name": "block", "kind": "fe"},
+        "time": {"steps": steps, "safety_factor": 0.5, **time},
+        "output": {"interval": 0.0, "vtk": True},
+        "fe": {"mesh": "block.geo", "mesh_size": 0.5, "reactions": ["bottom"],
+               "materials": [{"E": 10.0e6, "nu": 0.3, "rho": 2000.0}],
+               "boundary_conditions": [{"type": "fixed", "boundary": "bottom"}],
+               "loads": [{"type": "pressure", "boundary": "top", "pressure": PRESSURE, "ramp": 0.02}],
+               "damping": {"type": "local", "alpha": 0.5}},
+    }
+    path = tmp_path / "block.toml"
+    path.write_text(tomli_w.dumps(data))
+    return path
+
+
+def cosim(*args, mpi=0):
+    cmd = [str(COSIM), *args]
+    if mpi:
+        cmd = ["mpirun", "-n", str(mpi), *cmd]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=ENV, cwd=ROOT)
+    assert res.returncode == 0, res.stderr + res.stdout
+    return res
+
+
+def last_row(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))[-1]
+
+
+def test_support_reaction_balances_the_applied_load(tmp_path):
+    out = tmp_path / "out"
+    cosim("run", str(block_case(tmp_path)), "--out", str(out))
+    row = last_row(out / "series.csv")
+    assert float(row["bottom_z"]) == pytest.approx(PRESSURE * 1.0, rel=1e-2)
+    assert abs(float(row["bottom_x"])) < 1e-3 * PRESSURE and abs(float(row["bottom_y"])) < 1e-3 * PRESSURE
+    for name in ("fields.xdmf", "fields.h5", "energies.csv", "series.png", "energies.png", "run_info.json"):
+        assert (out / name).exists(), name
+
+
+def test_resume_matches_an_uninterrupted_run(tmp_path):
+    case = block_case(tmp_path, steps=300)
+    cosim("run", str(case), "--out", str(tmp_path / "a"))
+    cosim("run", str(case), "--out", str(tmp_path / "b"), "--set", "time.steps=150")
+    cosim("run", str(case), "--out", str(tmp_path / "b"), "--resume")
+    with np.load(tmp_path / "a" / "checkpoint.rank0of1.npz") as a, np.load(tmp_path / "b" / "checkpoint.rank0of1.npz") as b:
+        for key in a.files:
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    assert last_row(tmp_path / "a" / "series.csv") == last_row(tmp_path / "b" / "series.csv")
+
+
+def test_two_ranks_give_the_one_rank_history(tmp_path):
+    case = block_case(tmp_path, steps=400)
+    cosim("run", str(case), "--out", str(tmp_path / "one"))
+    cosim("run", str(case), "--out", str(tmp_path / "two"), mpi=2)
+    with open(tmp_path / "one" / "series.csv") as f1, open(tmp_path / "two" / "series.csv") as f2:
+        one = np.array([[float(v) for v in r.values()] for r in csv.DictReader(f1)])
+        two = np.array([[float(v) for v in r.values()] for r in csv.DictReader(f2)])
+    assert one.shape == two.shape
+    # reactions and displacements agree to the CSV's 10 significant digits (round-off of sums)
+    np.testing.assert_allclose(two, one, rtol=1e-8, atol=1e-8 * np.abs(one).max())
