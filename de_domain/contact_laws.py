@@ -16,6 +16,7 @@ from numba import njit
 
 from .materials import (
     PAIR_DAMPING_RATIO,
+    PAIR_DAMPING_RATIO_HERTZ,
     PAIR_E_STAR,
     PAIR_FRICTION,
     PAIR_G_STAR,
@@ -59,7 +60,8 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
                   k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
     """One contact step of DESIGN.md §2.
 
-    Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0. The
+    Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0, with
+    α calibrated per law so that the rebound equals the set restitution. The
     dashpot uses the normal relative velocity at tⁿ, v_rn^{n−½} + ``dvn`` with
     ``dvn`` = ½Δt (a_j − a_i)·n from the last step's accelerations (second order,
     and its dissipation matches the leapfrog kinetic-energy change).
@@ -76,7 +78,8 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
     f_el, k_n, k_t, e_normal = normal_force_and_stiffness(law, overlap, k_linear, r_star, params)
     v_rn = vrx * nx + vry * ny + vrz * nz
     v_rn_mid = v_rn + dvn
-    c_n = 2.0 * params[PAIR_DAMPING_RATIO] * math.sqrt(m_eff * k_n)
+    alpha = params[PAIR_DAMPING_RATIO_HERTZ] if law == HERTZ else params[PAIR_DAMPING_RATIO]
+    c_n = 2.0 * alpha * math.sqrt(m_eff * k_n)
     f_n = f_el - c_n * v_rn_mid
     if f_n < 0.0:
         f_n = 0.0

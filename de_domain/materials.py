@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass, asdict
 
 import numpy as np
+from numba import njit
 
 # Columns of the pair table.
 PAIR_FRICTION = 0
@@ -26,7 +27,8 @@ PAIR_ROLLING_STIFFNESS = 3  # β_r
 PAIR_ROLLING_FRICTION = 4  # η_r
 PAIR_E_STAR = 5
 PAIR_G_STAR = 6
-N_PAIR = 7
+PAIR_DAMPING_RATIO_HERTZ = 7  # α for the Hertz law, see damping_ratio_hertz
+N_PAIR = 8
 
 
 def _check(name, value, low, high, low_open=False):
@@ -110,6 +112,58 @@ def damping_ratio(restitution: float) -> float:
     return 0.5 * (lo + hi)
 
 
+@njit(cache=True)
+def restitution_of_hertz_damping_ratio(alpha):
+    """Restitution of the Hertz contact with the dashpot c_n = 2α√(m* k_n), k_n = dF/dδ.
+
+    In units where the impact speed, m* and 4/3 E*√R* are 1 the motion is
+    x'' = −x^{3/2} − 2√1.5 α x^{1/4} x' (force clipped to ≥ 0), x(0) = 0, x'(0) = 1,
+    independent of speed and stiffness (Tsuji et al. 1992 form); integrated by RK4.
+    """
+    c = 2.0 * math.sqrt(1.5) * alpha
+    h = 2e-4
+    x = 0.0
+    v = 1.0
+    while True:
+        k1x = v
+        k1v = min(0.0, -max(x, 0.0) ** 1.5 - c * max(x, 0.0) ** 0.25 * v)
+        x2 = x + 0.5 * h * k1x
+        v2 = v + 0.5 * h * k1v
+        k2x = v2
+        k2v = min(0.0, -max(x2, 0.0) ** 1.5 - c * max(x2, 0.0) ** 0.25 * v2)
+        x3 = x + 0.5 * h * k2x
+        v3 = v + 0.5 * h * k2v
+        k3x = v3
+        k3v = min(0.0, -max(x3, 0.0) ** 1.5 - c * max(x3, 0.0) ** 0.25 * v3)
+        x4 = x + h * k3x
+        v4 = v + h * k3v
+        k4x = v4
+        k4v = min(0.0, -max(x4, 0.0) ** 1.5 - c * max(x4, 0.0) ** 0.25 * v4)
+        x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
+        v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        if x <= 0.0:
+            return -v
+        if v >= 0.0 and x < 1e-12:  # stuck (overdamped): no rebound
+            return 0.0
+
+
+def damping_ratio_hertz(restitution: float) -> float:
+    """α giving the restitution e with the Hertz law (bisection on
+    :func:`restitution_of_hertz_damping_ratio`)."""
+    if restitution >= 1.0:
+        return 0.0
+    lo, hi = 0.0, 1.0
+    while restitution_of_hertz_damping_ratio(hi) > restitution:
+        hi *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if restitution_of_hertz_damping_ratio(mid) > restitution:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
 def material_arrays(materials):
     """Per-material arrays ``(density, young, poisson)`` as float64."""
     density = np.array([m.density for m in materials], dtype=np.float64)
@@ -129,6 +183,7 @@ def pair_table(materials) -> np.ndarray:
             row = table[a, b]
             row[PAIR_FRICTION] = min(ma.friction, mb.friction)
             row[PAIR_DAMPING_RATIO] = damping_ratio(min(ma.restitution, mb.restitution))
+            row[PAIR_DAMPING_RATIO_HERTZ] = damping_ratio_hertz(min(ma.restitution, mb.restitution))
             row[PAIR_STIFFNESS_RATIO] = 0.5 * (ma.stiffness_ratio + mb.stiffness_ratio)
             row[PAIR_ROLLING_STIFFNESS] = 0.5 * (ma.rolling_stiffness + mb.rolling_stiffness)
             row[PAIR_ROLLING_FRICTION] = 0.5 * (ma.rolling_friction + mb.rolling_friction)

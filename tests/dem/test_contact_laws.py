@@ -74,3 +74,37 @@ def test_no_tensile_normal_force():
     engine = Engine(p, mat, gravity=(0, 0, 0), dt=1e-9)
     engine.step()
     assert engine.pair_force[0, 0] == 0.0
+
+
+def hertz_head_on(restitution, speed=0.1):
+    mat = [Material(young=7e10, poisson=0.3, restitution=restitution, friction=0.0)]
+    p = Particles.from_spheres([[0, 0, 0], [2 * R + 1e-8, 0, 0]], R, materials=mat,
+                               velocities=[[speed, 0, 0], [-speed, 0, 0]])
+    engine = Engine(p, mat, contact_law="hertz", gravity=(0, 0, 0), safety_factor=0.01)
+    steps, touched = 0, False
+    while True:
+        engine.step()
+        if engine.pair_overlap[0] > 0:
+            steps += 1
+            touched = True
+        elif touched:
+            break
+    engine.run(3)
+    m_eff, r_star = p.mass[0] / 2, R / 2
+    e_star = 7e10 / (2 * (1 - 0.3**2))
+    v = 2 * speed
+    max_overlap = (15 * m_eff * v**2 / (16 * e_star * math.sqrt(r_star))) ** 0.4
+    return (p.vel[1, 0] - p.vel[0, 0]) / v, steps * engine.dt, 2.94320 * max_overlap / v
+
+
+def test_hertz_impact_duration_closed_form():
+    """Elastic Hertz impact: t_c = 2.9432 δ_max/v, δ_max = (15 m* v²/(16 E* √R*))^{2/5}."""
+    ratio, duration, expected = hertz_head_on(1.0)
+    assert ratio == pytest.approx(1.0, abs=1e-6)
+    assert duration == pytest.approx(expected, rel=0.01)
+
+
+@pytest.mark.parametrize("restitution", [0.3, 0.7])
+def test_hertz_rebound_ratio_equals_restitution(restitution):
+    ratio, _, _ = hertz_head_on(restitution)
+    assert ratio == pytest.approx(restitution, rel=0.01)
