@@ -93,9 +93,10 @@ class Engine:
 
     # ------------------------------------------------------------------ setup
     def _setup_facet_topology(self):
-        tris, edges, mats, v_off, e_off = [], [], [], 0, 0
+        tris, edges, mats, meshes, v_off, e_off = [], [], [], [], 0, 0
         self._vertex_offsets = [0]
-        for mesh in self.facets:
+        for k, mesh in enumerate(self.facets):
+            meshes.append(np.full(mesh.triangles.shape[0], k, np.int32))
             tris.append(mesh.triangles.astype(np.int64) + v_off)
             edges.append(mesh.triangle_edges + e_off)
             mats.append(np.full(mesh.triangles.shape[0], mesh.material, np.int32))
@@ -106,6 +107,7 @@ class Engine:
         self._triangles = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
         self._triangle_edges = np.concatenate(edges) if edges else np.zeros((0, 3), np.int64)
         self._triangle_material = np.concatenate(mats) if mats else np.zeros(0, np.int32)
+        self._triangle_mesh = np.concatenate(meshes) if meshes else np.zeros(0, np.int32)
         self._vertex_force = np.zeros((v_off, 3))
 
     def _allocate_pair_arrays(self, m):
@@ -116,6 +118,7 @@ class Engine:
         m_f = self.neighbors.f_tri.size
         self.facet_force = np.zeros((m_f, 3))
         self.facet_lambda = np.zeros((m_f, 3))
+        self.facet_active = np.zeros(m_f, np.bool_)
 
     def critical_timestep(self):
         """Δt_crit: linear law min √(m_i/k_n,i), k_n,i = 2 E r_i (a sphere against its
@@ -168,8 +171,8 @@ class Engine:
         if self.facets:
             facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
                            p.material, p.n_owned, self.young, self.pair_params, vertices, vertex_vel, self._triangles,
-                           self._triangle_edges, self._triangle_material, nl.f_start, nl.f_tri,
-                           nl.facet_history, p.force, p.torque, self.facet_force, self.facet_lambda,
+                           self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start,
+                           nl.f_tri, nl.facet_history, self.facet_active, p.force, p.torque, self.facet_force, self.facet_lambda,
                            facet_energy)
             facet_vertex_forces(self._triangles, nl.f_start, nl.f_tri, self.facet_force, self.facet_lambda,
                                 self._vertex_force)
@@ -381,6 +384,7 @@ class Engine:
         for k, mesh in enumerate(facets):
             mesh._engine_vertices = d[f"facet{k}__engine_vertices"].copy()
         engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
+        engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)
         for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
                      "pair_overlap", "facet_force", "facet_lambda", "acceleration"):
             setattr(engine, name, d[name].copy())

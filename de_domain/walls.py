@@ -265,15 +265,29 @@ def _keep_facet_contact(i, s, tri, feature, pos, radius, vertices, triangles, tr
     return True
 
 
+@njit(cache=True)
+def _facet_candidate_active(i, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
+    t = f_tri[s]
+    q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t, 0]],
+                                  vertices[triangles[t, 1]], vertices[triangles[t, 2]])
+    d2 = (q[0] - pos[i, 0]) ** 2 + (q[1] - pos[i, 1]) ** 2 + (q[2] - pos[i, 2]) ** 2
+    if d2 >= radius[i] * radius[i]:
+        return False
+    return _keep_facet_contact(i, s, t, q[6], pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
+
+
 @njit(parallel=True, cache=True)
 def facet_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_owned, young, pair_params,
-                   vertices, vertex_vel, triangles, tri_edges, tri_mat, f_start, f_tri, history,
-                   force, torque, cand_force, cand_lambda, block_energy):
+                   vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, history,
+                   active, force, torque, cand_force, cand_lambda, block_energy):
     """Sphere–triangle contacts (closest point: face, edge or vertex; deduplicated).
 
-    Adds force/torque on the spheres; ``cand_force`` (force on the sphere, zero if
-    inactive) and ``cand_lambda`` (barycentric weights) per candidate feed the
-    vertex-force split done serially in :func:`facet_vertex_forces`.
+    Per sphere: (1) which candidates are in contact; (2) a new contact on a mesh
+    takes over the history of a contact on the same mesh that has just ended (a
+    sphere rolling or sliding across a shared edge keeps its tangential spring);
+    (3) forces. Adds force/torque on the spheres; ``cand_force`` (force on the
+    sphere, zero if inactive) and ``cand_lambda`` (barycentric weights) per
+    candidate feed the vertex-force split done serially in :func:`facet_vertex_forces`.
     """
     n_blocks = (n_owned + BLOCK - 1) // BLOCK
     for b in prange(n_blocks):
@@ -281,8 +295,30 @@ def facet_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_o
             block_energy[b, k] = 0.0
         for i in range(b * BLOCK, min((b + 1) * BLOCK, n_owned)):
             r = radius[i]
-            for s in range(f_start[i], f_start[i + 1]):
+            s0 = f_start[i]
+            s1 = f_start[i + 1]
+            for s in range(s0, s1):
+                active[s] = _facet_candidate_active(i, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
+            for s in range(s0, s1):
+                if not active[s] or np.any(history[s] != 0.0):
+                    continue
+                for s2 in range(s0, s1):
+                    if not active[s2] and tri_mesh[f_tri[s2]] == tri_mesh[f_tri[s]] and np.any(history[s2] != 0.0):
+                        history[s, :] = history[s2, :]
+                        history[s2, :] = 0.0
+                        break
+            for s in range(s0, s1):
                 t = f_tri[s]
+                h = history[s]
+                params = pair_params[material[i], tri_mat[t]]
+                k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
+                if not active[s]:
+                    if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
+                        block_energy[b, 4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2],
+                                                              h[3], h[4], h[5])
+                        h[:] = 0.0
+                    cand_force[s, :] = 0.0
+                    continue
                 a = vertices[triangles[t, 0]]
                 bb = vertices[triangles[t, 1]]
                 c = vertices[triangles[t, 2]]
@@ -292,18 +328,6 @@ def facet_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_o
                 dz = q[2] - pos[i, 2]
                 dist = np.sqrt(dx * dx + dy * dy + dz * dz)
                 overlap = r - dist
-                params = pair_params[material[i], tri_mat[t]]
-                k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
-                h = history[s]
-                active = overlap > 0.0 and _keep_facet_contact(i, s, t, q[6], pos, radius, vertices,
-                                                                 triangles, tri_edges, f_start, f_tri)
-                if not active:
-                    if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
-                        block_energy[b, 4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2],
-                                                              h[3], h[4], h[5])
-                        h[:] = 0.0
-                    cand_force[s, :] = 0.0
-                    continue
                 if dist > 0.0:
                     nx = dx / dist
                     ny = dy / dist

@@ -87,3 +87,31 @@ def test_moving_facets_driven_from_outside_do_tracked_work():
     assert e["work_walls"] > 0
     assert abs(e["residual"]) <= 0.01 * (e["work_walls"] + e["dissipated"])
     assert p.vel[0, 2] == pytest.approx(0.05, rel=0.02)
+
+
+def test_tangential_spring_carried_across_a_shared_edge():
+    """A sphere held by friction on a tilted floor, on the shared diagonal edge: its
+    elastic creep moves the contact from triangle 0 (edge) to triangle 1 (face); the
+    new contact inherits the tangential spring, so the friction force is continuous
+    across the switch (it would drop to ≈ k_t v Δt ≈ 0 if the spring restarted)."""
+    mesh = square_two_triangles(L=8e-3)
+    mat = [Material(young=5e7, friction=0.5, restitution=0.2)]
+    p = Particles.from_spheres([[4e-3 + 2e-10, 4e-3 - 2e-10, R]], R, materials=mat)  # just inside triangle 0
+    p.blocked[0, 3:] = True
+    theta = np.radians(15.0)
+    downhill = np.array([-1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    gravity = 9.81 * (np.sin(theta) * downhill - np.cos(theta) * np.array([0, 0, 1.0]))
+    engine = Engine(p, mat, facets=[mesh], gravity=gravity, safety_factor=0.02)  # k_t v Δt ≪ |F_t|
+    p.pos[0, 2] = R - p.mass[0] * 9.81 * np.cos(theta) / (2 * 5e7 * R)
+    seen, friction = [], []
+    for _ in range(20000):
+        engine.step()
+        c = engine.contacts()
+        assert len(c["facet_particle"]) == 1
+        seen.append(int(c["facet_triangle"][0]))
+        friction.append(np.linalg.norm(c["facet_force"][0][:2]))
+        if seen[-1] != seen[0]:
+            break
+    assert seen[0] == 0 and seen[-1] == 1
+    assert friction[-2] > 0.1 * p.mass[0] * 9.81 * np.sin(theta)
+    assert friction[-1] == pytest.approx(friction[-2], rel=0.25)
