@@ -38,6 +38,12 @@ viscous_damping=0.0, skin=None)``
 
 ``de_domain.io``: ``write_particles_vtu(path, particles)``, ``write_facets_vtu(path, mesh)``,
 ``write_frame(directory, engine, step)``.
+
+Developer notes: kernels are ``numba.njit(cache=True)``; Numba's cache does not
+notice when a *called* kernel in another module changes, so after editing e.g.
+``contact_laws.py`` remove ``de_domain/__pycache__`` (stale callers otherwise keep
+the old code). Results are bit-identical for any Numba thread count and any Verlet
+rebuild frequency (fixed-order reductions, canonically sorted neighbour lists).
 """
 from .engine import Engine
 from .materials import Material
