@@ -175,7 +175,7 @@ class FeSection(_Section):
     mesh_size: Optional[float] = Field(default=None, gt=0, description="target element size for a .geo source [m]")
     geometry_parameters: dict[str, float] = Field(default_factory=dict, description="overrides of the .geo DefineConstant values [m]")
     formulation: Literal["mixed", "displacement"] = Field(default="mixed", description="'mixed' u-p with OSS stabilisation, or pure-displacement P1")
-    alpha_tau: Optional[float] = Field(default=None, gt=0, description="stabilisation factor in tau_e = alpha_tau h_e^2/(2G) [-]; default stable up to nu = 0.499")
+    alpha_tau: Optional[float] = Field(default=None, gt=0, description="stabilisation factor in tau_e = alpha_tau h_e^2/(2G) [-]; default: half the measured stability bound 0.6 G/K of the most incompressible material")
     materials: list[FeMaterial] = Field(min_length=1, description="[[fe.materials]] tables")
     boundary_conditions: list[FeBoundaryCondition] = Field(default_factory=list, description="[[fe.boundary_conditions]] tables")
     loads: list[FeLoad] = Field(default_factory=list, description="[[fe.loads]] tables")
@@ -379,6 +379,14 @@ def _check_fe(path, fe):
             check_surface(f"fe.loads[{i}].boundary", load.boundary)
     for i, name in enumerate(fe.reactions):
         check_surface(f"fe.reactions[{i}]", name)
+    if fe.alpha_tau is not None:
+        from fe_domain.explicit import stable_alpha_tau
+        nu_max = max(m.nu for m in fe.materials)
+        bound = stable_alpha_tau(nu_max, margin=1.0)
+        if fe.alpha_tau > bound:
+            raise CaseError(path, "fe.alpha_tau", fe.alpha_tau,
+                            f"step 3 is unstable above alpha_tau = {bound:.3g} for nu = {nu_max} (measured bound "
+                            f"alpha_tau K/G <= C); omit the key for the default {stable_alpha_tau(nu_max):.3g}")
     if fe.damping is not None and fe.damping.type == "local" and fe.damping.alpha >= 1:
         raise CaseError(path, "fe.damping.alpha", fe.damping.alpha, "local non-viscous damping needs 0 <= alpha < 1")
 

@@ -21,13 +21,18 @@ PROGRESS_CHUNK = 50  # steps between checks of the progress line and checkpoint 
 
 
 def prepare(case, case_path):
-    """All input checks are in the case loader (mesh file, group names); nothing to read here."""
+    """Nothing to read: the case loader checked the mesh file, group names and α_τ bound."""
     return None
+
+
+def default_alpha_tau(case):
+    """The largest α_τ with a safety margin of 2 for the most incompressible material."""
+    from fe_domain.explicit import stable_alpha_tau
+    return stable_alpha_tau(max(m.nu for m in case.fe.materials))
 
 
 def build_solid(case, case_path):
     from fe_domain.build import build_solid as build
-    from fe_domain.explicit import DEFAULT_ALPHA_TAU
     fe = case.fe
     if len(fe.materials) == 1 and fe.materials[0].group is None:
         material = {k: getattr(fe.materials[0], k) for k in ("E", "nu", "rho")}
@@ -38,7 +43,7 @@ def build_solid(case, case_path):
                  boundary_conditions=[drop_none(bc) for bc in fe.boundary_conditions],
                  loads=[drop_none(load) for load in fe.loads],
                  damping=fe.damping.model_dump() if fe.damping else None,
-                 formulation=fe.formulation, alpha_tau=fe.alpha_tau or DEFAULT_ALPHA_TAU,
+                 formulation=fe.formulation, alpha_tau=fe.alpha_tau or default_alpha_tau(case),
                  safety_factor=case.time.safety_factor, geometry_parameters=fe.geometry_parameters or None)
 
 

@@ -194,3 +194,8 @@ def test_fe_velocity_condition_needs_velocity(tmp_path, fe_base):
 def test_fe_poisson_ratio_range(tmp_path, fe_base):
     fe_base["fe"]["materials"][0]["nu"] = 0.5
     expect_error(tmp_path, fe_base, "fe.materials[0].nu", "0.5", "less than 0.5")
+
+
+def test_fe_alpha_tau_above_the_stability_bound(tmp_path, fe_base):
+    fe_base["fe"]["alpha_tau"] = 1.0
+    expect_error(tmp_path, fe_base, "fe.alpha_tau", "1.0", "step 3 is unstable above alpha_tau = 0.277 for nu = 0.3")
