@@ -128,6 +128,7 @@ class DirectShearSection(_Section):
     inertial_number: float = Field(default=1e-3, gt=0, le=0.1, description="target I = (v/h) d50 sqrt(rho/sigma_n) when shear_velocity is not given [-]")
     ramp_distance: float = Field(default=2e-4, ge=0, description="the shear velocity ramps up linearly over this displacement [m]")
     servo_gain: float = Field(default=0.3, gt=0, le=1, description="fraction of the stress error the servo removes per step (PFC-style gain) [-]")
+    servo_integral: float = Field(default=0.01, ge=0, le=0.2, description="integral action: per step the integral velocity grows by this x the proportional one [-]")
     servo_max_velocity: float = Field(default=0.05, gt=0, description="largest servo plate speed [m/s]")
     consolidation_tolerance: float = Field(default=0.01, gt=0, le=0.1, description="consolidation ends when |sigma - sigma_n|/sigma_n is below this ... [-]")
     consolidation_unbalanced_force: float = Field(default=0.02, gt=0, le=0.5, description="... and the unbalanced force ratio is below this [-]")
@@ -137,7 +138,7 @@ class DirectShearSection(_Section):
     plate_material: str = Field(default="plate", description="material name of the top and bottom plates (rough)")
     rows: int = Field(default=300, ge=10, le=100000, description="number of CSV rows over the shear distance [-]")
     residual_fraction: float = Field(default=0.2, gt=0, lt=1, description="residual = mean over the last fraction of the shear distance [-]")
-    band_thickness: float = Field(default=0.0, ge=0, description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 4 d50")
+    band_thickness: float = Field(default=0.0, ge=0, description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 2 d50")
 
 
 # --------------------------------------------------------------------------- fe

@@ -15,6 +15,9 @@ The run, top to bottom:
    (ramped over ``ramp_distance``), the servo holding σ_n = F_z / A_c, until
    δ = ``shear_distance``. A CSV row is written every ``shear_distance / rows`` with
    values averaged over the steps since the previous row.
+   The servo is the PFC-style proportional law of ``cosim.lab.shear_box.servo_velocity``
+   plus a small integral term (``servo_integral``), so σ_n does not lag while the
+   specimen dilates or contracts at a steady rate.
 5. **Report** — ``summary.json``/``summary.txt`` (peak and residual τ/σ_n and friction
    angles, volume change, inertial number, servo error), PNG plots.
 
@@ -176,6 +179,7 @@ class ShearTest:
         self.height0 = height
         self.x0 = self.upper.vertices[:, 0].copy()
         self.stiffness = 0.0
+        self.v_integral = 0.0
         self.shear_velocity = 0.0
 
     # ---------------------------------------------------------------- measurements
@@ -210,7 +214,7 @@ class ShearTest:
     def love_weber_slab(self):
         """(σ_zz, σ_xz) of the slab around the split plane over the overlap (compression +)."""
         from de_domain.diagnostics import BoxRegion, love_weber_stress
-        b = self.ds.band_thickness or 4.0 * self.d50
+        b = self.ds.band_thickness or 2.0 * self.d50
         zs = self.geometry.split_height
         region = BoxRegion((self.displacement, 0.0, zs - 0.5 * b), (self.L, self.L, zs + 0.5 * b))
         s = love_weber_stress(self.engine, region)
@@ -230,6 +234,10 @@ class ShearTest:
             self.update_stiffness()
         vz = servo_velocity(self.normal_stress(), target, self.area(), self.stiffness, self.engine.dt,
                             ds.servo_gain, ds.servo_max_velocity)
+        if self.stiffness > 0.0:  # integral action: no steady lag while the specimen dilates or contracts
+            self.v_integral = float(np.clip(self.v_integral + ds.servo_integral * vz,
+                                            -ds.servo_max_velocity, ds.servo_max_velocity))
+        vz = float(np.clip(vz + self.v_integral, -ds.servo_max_velocity, ds.servo_max_velocity))
         self.plate.velocity = np.array([self.shear_velocity, 0.0, vz])
         self.upper.velocity = np.array([self.shear_velocity, 0.0, 0.0])
         self.engine.step()
@@ -303,7 +311,8 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache):
     v = ds.shear_velocity or velocity_for_inertial_number(ds.inertial_number, height, test.d50, test.density,
                                                           ds.normal_stress)
     inertial = inertial_number(v, height, test.d50, test.density, ds.normal_stress)
-    total_steps = int(math.ceil((ds.shear_distance + 0.5 * ds.ramp_distance) / (v * engine.dt)))
+    # the ramp from 2 % of v over ramp_distance takes ln(50) ramp_distance / v
+    total_steps = int(math.ceil((ds.shear_distance + (math.log(50.0) - 1.0) * ds.ramp_distance) / (v * engine.dt)))
     log(f"shearing at v = {v:.4g} m/s (inertial number I = {inertial:.2e}) to δ = {ds.shear_distance * 1e3:.2f} mm: "
         f"about {total_steps} steps")
     series = CsvSeries(out_dir / "series.csv", COLUMNS)
