@@ -11,11 +11,24 @@ M_p = ∫N/K, G̃ = ∫τN, with the orthogonal-sub-scale parameter
 3. p^{n+1} = p^n + M_p⁻¹ [Δt ∫ q div v^{n+½} − ∫ τ ∇q·(∇p^n + π^n)]
 4. π^{n+1} = −G̃⁻¹ ∫ τ N ∇p^{n+1}
 
-Step 4 needs only p^{n+1} and is consumed first by step 3 of the next step, so it
-is evaluated in the same element pass as the next step's f_int (both read
-(u^{n+1}, p^{n+1})): two vector assemblies per step instead of three, same
-arithmetic.  ``formulation="displacement"`` drops p and π and uses
-f_int = ∫ Bᵀ(s(u) + K div u I): the standard P1 element, which locks as ν → ½.
+The material is linear elastic and small-strain, so each per-step integral is a
+constant linear operator of the state.  They are assembled once, at construction,
+from the bilinear forms of ``forms.py`` into PETSc matrices:
+
+    f_int(u, p) = K_dev u + Bᵀ p        K_dev = ∫ s(N):∇N (BAIJ, 3×3 blocks), Bᵀ = ∫ N div N
+    ∫ τ N ∇p    = P p                   P = ∫ τ N·∇N
+    ∫ q div v   = (Bᵀ)ᵀ v               (transpose product, no extra matrix)
+    ∫ τ ∇q·(∇p + π) = L p + Pᵀ π        L = ∫ τ ∇N·∇N
+
+so a step is six sparse matrix–vector products plus nodal array operations, with
+the same arithmetic as steps 1–4 (to round-off).  Step 4 needs only p^{n+1} and
+is consumed first by step 3 of the next step, so it is evaluated at the start of
+the next step, next to f_int (both read (u^{n+1}, p^{n+1})).  The products fill
+the owned rows (PETSc fetches the off-rank inputs itself); forward ghost updates
+of f_int and π, and of p after step 3's owned-node update, keep every nodal array
+valid on owned and ghost nodes after a step.  ``formulation="displacement"``
+drops p and π and uses f_int = K u, K = ∫ Bᵀ(s(N) + K div N I): the standard P1
+element, which locks as ν → ½.
 
 h_e is the smallest altitude of tetrahedron e (3 V_e / largest face area), used both
 for τ_e and for the time step Δt = f_s min_e h_e / c_p,e, c_p = √((K + 4G/3)/ρ).
@@ -43,6 +56,7 @@ from typing import Mapping, Sequence
 
 import dolfinx
 import dolfinx.cpp
+import dolfinx.fem.petsc
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -65,6 +79,11 @@ def stable_alpha_tau(nu: float, margin: float = 0.5) -> float:
     """α_τ = margin · C · G/K for Poisson ratio ν (C = STABILITY_CONSTANT)."""
     g_over_k = 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu))
     return margin * STABILITY_CONSTANT * g_over_k
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """Σ a·b without BLAS: a threaded BLAS dot costs ~1 ms per call on a loaded machine."""
+    return float(np.einsum("i,i->", a.ravel(), b.ravel()))
 
 
 class ExplicitSolid:
@@ -94,16 +113,13 @@ class ExplicitSolid:
         self.time = 0.0
         self.step_count = 0
 
-        # Spaces: P1 vector (u, v, π), P1 scalar (p), 6-component P1 (pass A test), DG0.
+        # Spaces: P1 vector (u, v, π), P1 scalar (p), DG0 (material fields, τ).
         self.V = fem.VectorFunctionSpace(mesh, ("CG", 1))
         self.Q = fem.FunctionSpace(mesh, ("CG", 1))
-        self.Z = fem.VectorFunctionSpace(mesh, ("CG", 1), dim=6)
-        self.Z2 = fem.VectorFunctionSpace(mesh, ("CG", 1), dim=2)
         self.D0 = fem.FunctionSpace(mesh, ("DG", 0))
         cell_nodes = self.Q.dofmap.list.array.reshape(-1, 4)
-        for space in (self.V, self.Z, self.Z2):
-            if not np.array_equal(space.dofmap.list.array.reshape(-1, 4), cell_nodes):
-                raise RuntimeError("P1 spaces do not share one node numbering")
+        if not np.array_equal(self.V.dofmap.list.array.reshape(-1, 4), cell_nodes):
+            raise RuntimeError("P1 spaces do not share one node numbering")
         index_map = self.Q.dofmap.index_map
         self.n_owned_nodes = index_map.size_local
         self.n_nodes = index_map.size_local + index_map.num_ghosts
@@ -126,29 +142,29 @@ class ExplicitSolid:
         self._inverse_mass = 1.0 / self.mass.reshape(-1, 3)
         cp = np.sqrt((self._K_cells + 4.0 * self._G_cells / 3.0) / self._rho_cells)
         self.dt_critical = self.comm.allreduce(float(np.min(self.h_cells / cp)), op=MPI.MIN)
-        self._dt_constant = fem.Constant(mesh, PETSc.ScalarType(0.0))
-
-        z, q = ufl.TestFunction(self.Z if self.mixed else self.V), ufl.TestFunction(self.Q)
+        w, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
+        q, dp = ufl.TestFunction(self.Q), ufl.TrialFunction(self.Q)
+        self._f_int, self._f_int_petsc = self._vector(3)
         if self.mixed:
             self.pressure_mass = self._lumped(forms.lumped_pressure_mass(q, self.K))
             self.projection_mass = self._lumped(forms.lumped_projection_mass(q, self.tau))
             self._inverse_pressure_mass = 1.0 / self.pressure_mass
             with np.errstate(divide="ignore"):
                 self._inverse_projection_mass = np.where(self.projection_mass > 0, 1.0 / self.projection_mass, 0.0)
-            self._pass_a = fem.form(forms.internal_force_and_projection(z, self.u, self.p, self.G, self.tau))
-            self._pass_b = fem.form(forms.pressure_increment(ufl.TestFunction(self.Z2), self.v, self.p,
-                                                             self.pi, self.tau, self._dt_constant))
-            self._pass_b_vector = dolfinx.la.vector(index_map, 2)
-            self._pass_b_nodal = self._pass_b_vector.array.reshape(self.n_nodes, 2)
+            self._stiffness = self._matrix(forms.deviatoric_stiffness(w, du, self.G), "baij")
+            self._divergence = self._matrix(forms.pressure_divergence(w, dp))
+            self._projection = self._matrix(forms.pressure_gradient_projection(w, dp, self.tau))
+            self._laplacian = self._matrix(forms.pressure_laplacian(q, dp, self.tau))
+            self._projected, self._projected_petsc = self._vector(3)      # P p
+            self._volumetric, self._volumetric_petsc = self._vector(1)    # ∫ q div v
+            self._stabilisation, self._stabilisation_petsc = self._vector(1)   # ∫ τ ∇q·(∇p + π)
+            self._pressure_change = np.zeros(self.n_owned_nodes)
             self._strain_energy = fem.form(forms.deviatoric_strain_energy(self.u, self.G))
         else:
-            self._pass_a = fem.form(forms.internal_force_displacement(z, self.u, self.G, self.K))
+            self._stiffness = self._matrix(forms.displacement_stiffness(w, du, self.G, self.K), "baij")
             self._strain_energy = fem.form(forms.deviatoric_strain_energy(self.u, self.G)
                                            + forms.volumetric_strain_energy(self.u, self.K))
-        self._pass_a_vector = dolfinx.la.vector(index_map, 6 if self.mixed else 3)
-        self._pass_a_nodal = self._pass_a_vector.array.reshape(self.n_nodes, -1)
         self._external_vector = dolfinx.la.vector(index_map, 3)
-        self._constants_a = dolfinx.cpp.fem.pack_constants(self._pass_a)
         self.dt = safety_factor * self.dt_critical if dt is None else dt
 
         self._setup_boundary_conditions(boundary_conditions)
@@ -165,6 +181,8 @@ class ExplicitSolid:
         self.net_force = np.zeros((self.n_nodes, 3))
         self._damping_force = np.zeros((self.n_nodes, 3))
         self._velocity_change = np.zeros((self.n_nodes, 3))
+        self._velocity_old = np.zeros((self.n_nodes, 3))
+        self._increment = np.zeros((self.n_nodes, 3))
 
     @property
     def dt(self) -> float:
@@ -176,9 +194,6 @@ class ExplicitSolid:
         if not 0 < value <= self.dt_critical:
             raise ValueError(f"dt = {value!r}: must lie in (0, dt_critical = {self.dt_critical:.4g}] s")
         self._dt = float(value)
-        self._dt_constant.value = self._dt
-        if self.mixed:
-            self._constants_b = dolfinx.cpp.fem.pack_constants(self._pass_b)
 
     # ------------------------------------------------------------------ setup
     def _setup_geometry(self, cell_nodes):
@@ -274,38 +289,71 @@ class ExplicitSolid:
         return vector.array.copy()
 
     @staticmethod
-    def _assemble(vector, form, constants=None):
+    def _assemble(vector, form):
         """Assemble ``form`` into a preallocated la.Vector, then ghost updates (reverse add, forward)."""
         vector.array[:] = 0.0
-        if constants is None:
-            constants = dolfinx.cpp.fem.pack_constants(form)
-        dolfinx.cpp.fem.assemble_vector(vector.array, form, constants,
-                                        dolfinx.cpp.fem.pack_coefficients(form))
+        fem.assemble_vector(vector.array, form)
         vector.scatter_reverse(ScatterMode.add)
         vector.scatter_forward()
 
+    def _matrix(self, bilinear_form, mat_type=None) -> PETSc.Mat:
+        """Assemble a bilinear form once into a finalised PETSc matrix (owned rows complete)."""
+        form = fem.form(bilinear_form)
+        matrix = dolfinx.fem.petsc.create_matrix(form, mat_type)
+        dolfinx.fem.petsc.assemble_matrix(matrix, form)
+        matrix.assemble()
+        return matrix
+
+    def _vector(self, bs):
+        """A nodal la.Vector with ``bs`` components and a PETSc Vec sharing its memory."""
+        vector = dolfinx.la.vector(self.Q.dofmap.index_map, bs)
+        return vector, dolfinx.cpp.la.petsc.create_vector_wrap(vector)
+
+    def operators(self) -> dict[str, PETSc.Mat]:
+        """The assembled step operators by name (K_dev or K, and Bᵀ, P, L for the mixed form)."""
+        if not self.mixed:
+            return {"K": self._stiffness}
+        return {"K_dev": self._stiffness, "B^T": self._divergence, "P": self._projection, "L": self._laplacian}
+
+    def operator_bytes(self) -> int:
+        """This rank's storage (bytes) of the step operators: values, column and row indices."""
+        index_size, value_size = np.dtype(PETSc.IntType).itemsize, np.dtype(PETSc.ScalarType).itemsize
+        parts = 1 if self.comm.size == 1 else 2            # MPI: diagonal and off-diagonal blocks
+        total = 0
+        for matrix in self.operators().values():
+            entries = int(matrix.getInfo(PETSc.Mat.InfoType.LOCAL)["nz_used"])
+            bs = matrix.getBlockSize() if "baij" in matrix.getType() else 1
+            rows = matrix.getLocalSize()[0] // bs
+            total += entries * value_size + (entries // bs ** 2 + parts * (rows + 1)) * index_size
+        return total
+
     # ------------------------------------------------------------------ stepping
     def step(self) -> None:
-        """Advance one time step, DESIGN §4 steps 1–4 (step 4 fused with the next step 1)."""
+        """Advance one time step, DESIGN §4 steps 1–4 (step 4 at the start of the next step)."""
         dt = self.dt
-        # Step 1 (and step 4 for p^n): one element pass over (u^n, p^n).
-        self._assemble(self._pass_a_vector, self._pass_a, self._constants_a)
+        # Step 1 (and step 4 for p^n): f_int = K_dev u^n + Bᵀ p^n, π^n = −G̃⁻¹ P p^n.
+        self._stiffness.mult(self.u.vector, self._f_int_petsc)
         if self.mixed:
-            np.multiply(self._pass_a_nodal[:, 3:], -self._inverse_projection_mass[:, None],
+            self._divergence.multAdd(self.p.vector, self._f_int_petsc, self._f_int_petsc)
+            self._projection.mult(self.p.vector, self._projected_petsc)
+            self._projected.scatter_forward()
+            np.multiply(self._projected.array.reshape(-1, 3), -self._inverse_projection_mass[:, None],
                         out=self.projected_pressure_gradient)
+        self._f_int.scatter_forward()
         self._external_vector.array[:] = self.external_force.ravel()
         self._external_vector.scatter_reverse(ScatterMode.add)
         self._external_vector.scatter_forward()
         f_ext = self._external_vector.array.reshape(-1, 3)
         for vector, amplitude in self._loads:
             f_ext += amplitude(self.time) * vector
-        np.subtract(f_ext, self._pass_a_nodal[:, :3], out=self.net_force)
+        np.subtract(f_ext, self._f_int.array.reshape(-1, 3), out=self.net_force)
         velocity = self.velocity
         f_damp = self._damping_force
         if self.damping is not None:
             f_damp[:] = self.damping.force(self.net_force, velocity, self.mass.reshape(-1, 3))
             self.net_force -= f_damp
-        velocity_old = velocity.copy()
+        velocity_old = self._velocity_old
+        velocity_old[:] = velocity
         velocity += dt * self._inverse_mass * self.net_force
         flat = self.v.x.array
         flat[self._fixed_dofs] = 0.0
@@ -316,20 +364,27 @@ class ExplicitSolid:
         if self.energy_due():
             self._record_energies(velocity_old)
         # Step 2.
-        increment = dt * velocity
+        increment = np.multiply(dt, velocity, out=self._increment)
         owned = slice(0, self.n_owned_nodes)
-        self._external_work += float(np.vdot(f_ext[owned], increment[owned]))
+        self._external_work += _dot(f_ext[owned], increment[owned])
         if self.damping is not None:
-            self._damping_work += float(np.vdot(f_damp[owned], increment[owned]))
+            self._damping_work += _dot(f_damp[owned], increment[owned])
         self.displacement += increment
-        # Step 3.
+        # Step 3: Δp = M_p⁻¹ [Δt (Bᵀ)ᵀ v^{n+½} − (L p^n + Pᵀ π^n)] on owned nodes, then p's ghosts.
         if self.mixed:
-            self._assemble(self._pass_b_vector, self._pass_b, self._constants_b)
-            volumetric, stabilisation = self._pass_b_nodal[:, 0], self._pass_b_nodal[:, 1]
-            pressure_change = (volumetric - stabilisation) * self._inverse_pressure_mass
-            mid_pressure = self.pressure[owned] + 0.5 * pressure_change[owned]
-            self._stabilisation_dissipation += float(np.vdot(mid_pressure, stabilisation[owned]))
-            self.pressure += pressure_change
+            self._divergence.multTranspose(self.v.vector, self._volumetric_petsc)
+            self._laplacian.mult(self.p.vector, self._stabilisation_petsc)
+            self._projection.multTransposeAdd(self.pi.vector, self._stabilisation_petsc,
+                                              self._stabilisation_petsc)
+            stabilisation = self._stabilisation.array[owned]
+            pressure_change = self._pressure_change
+            np.multiply(dt, self._volumetric.array[owned], out=pressure_change)
+            pressure_change -= stabilisation
+            pressure_change *= self._inverse_pressure_mass[owned]
+            pressure = self.pressure[owned]
+            self._stabilisation_dissipation += _dot(pressure + 0.5 * pressure_change, stabilisation)
+            pressure += pressure_change
+            self.p.x.scatter_forward()
         self.time += dt
         self.step_count += 1
 

@@ -4,10 +4,13 @@ Notation: u, v displacement and velocity (P1 vector), p mean stress (P1 scalar,
 tension positive), π projected pressure gradient (P1 vector), τ the element
 stabilisation parameter (DG0), G, K, ρ the shear modulus, bulk modulus and density
 (DG0, so materials may differ between cell groups).  N is a P1 shape function;
-w, q, ψ are test functions.
+w, q, ψ are test functions, du, dp trial functions.
 
-Every form here is linear in the test function and is assembled as a vector (per
-step) or once (lumped matrices, loads).
+The material is linear elastic and small-strain, so every per-step integral of
+DESIGN §4 is a constant linear operator of the state.  The bilinear forms here are
+assembled once into sparse matrices (K_dev, Bᵀ, P, L; a step applies them and two
+transposes); the linear forms once into vectors (lumped matrices, loads) or at
+output intervals (energies).
 """
 
 from __future__ import annotations
@@ -46,32 +49,36 @@ def lumped_projection_mass(q, tau):
     return tau * q * ufl.dx
 
 
-def internal_force_and_projection(z, u, p, G, tau):
-    """Step 1's f_int = ∫ Bᵀ(s(u) + p I) and step 4's ∫ τ N ∇p, in one element pass.
-
-    ``z`` is a test function of a 6-component P1 space: z[0:3] = w (momentum),
-    z[3:6] = ψ (pressure-gradient projection).  Both parts need only (u, p) at the
-    same time level, so they share one assembly.
-    """
-    w = ufl.as_vector([z[0], z[1], z[2]])
-    psi = ufl.as_vector([z[3], z[4], z[5]])
-    stress = deviatoric_stress(u, G) + p * ufl.Identity(3)
-    return (ufl.inner(stress, ufl.grad(w)) + tau * ufl.inner(psi, ufl.grad(p))) * ufl.dx
+def deviatoric_stiffness(w, du, G):
+    """K_dev: ∫ s(du) : ∇w, so that K_dev u = ∫ Bᵀ s(u) (step 1, deviatoric part of f_int)."""
+    return ufl.inner(deviatoric_stress(du, G), ufl.grad(w)) * ufl.dx
 
 
-def internal_force_displacement(w, u, G, K):
-    """Pure-displacement P1: f_int = ∫ Bᵀ(s(u) + K div u I) (locks as ν → 1/2)."""
-    stress = deviatoric_stress(u, G) + K * ufl.div(u) * ufl.Identity(3)
+def displacement_stiffness(w, du, G, K):
+    """Pure-displacement P1: K u = ∫ Bᵀ(s(u) + K div u I) (locks as ν → 1/2)."""
+    stress = deviatoric_stress(du, G) + K * ufl.div(du) * ufl.Identity(3)
     return ufl.inner(stress, ufl.grad(w)) * ufl.dx
 
 
-def pressure_increment(z, v, p, pi, tau, dt):
-    """Step 3's right-hand side, its two parts on separate components of a 2-component test z:
+def pressure_divergence(w, dp):
+    """Bᵀ: ∫ dp div w, so that Bᵀ p = ∫ Bᵀ p I (step 1, pressure part of f_int).
 
-    z[0]: Δt ∫ q div v^{n+½}        (volumetric rate)
-    z[1]: ∫ τ ∇q·(∇p^n + π^n)       (OSS stabilisation; kept apart for its dissipation)
+    Its transpose is step 3's volumetric rate: (Bᵀ)ᵀ v = ∫ q div v.
     """
-    return (dt * z[0] * ufl.div(v) + tau * ufl.inner(ufl.grad(z[1]), ufl.grad(p) + pi)) * ufl.dx
+    return dp * ufl.div(w) * ufl.dx
+
+
+def pressure_gradient_projection(psi, dp, tau):
+    """P: ∫ τ ψ·∇dp, so that π = −G̃⁻¹ P p (step 4).
+
+    Its transpose is step 3's ∫ τ ∇q·π: Pᵀ π.
+    """
+    return tau * ufl.inner(psi, ufl.grad(dp)) * ufl.dx
+
+
+def pressure_laplacian(q, dp, tau):
+    """L: ∫ τ ∇q·∇dp (step 3's stabilisation is L p + Pᵀ π)."""
+    return tau * ufl.inner(ufl.grad(q), ufl.grad(dp)) * ufl.dx
 
 
 def deviatoric_strain_energy(u, G):
