@@ -1,6 +1,8 @@
 """The DEM step sequence (DESIGN.md §2; YADE-style visible engine list).
 
-One :meth:`Engine.step` is, in order:
+One step is, in order (:mod:`de_domain.fused` runs 1–7 for many steps in one
+compiled loop with two parallel regions per step when there are no facet meshes;
+with facets, 3–4 and 5 are separate kernels):
 
 1. boundary bookkeeping   – walls/facets moved from outside since the last step
 2. neighbour update       – Verlet lists rebuilt when displacements exceed the skin
@@ -17,6 +19,7 @@ import math
 
 import numpy as np
 
+from . import fused
 from .contact_laws import HERTZ, LAWS
 from .integrate import BLOCK as INTEGRATE_BLOCK
 from .integrate import N_ENERGY as INTEGRATE_N_ENERGY
@@ -24,12 +27,9 @@ from .integrate import leapfrog
 from .materials import Material, material_arrays, pair_table
 from .neighbors import NeighborList
 from .particles import ARRAY_FIELDS, Particles
-from .sphere_contacts import BLOCK as PAIR_BLOCK
-from .sphere_contacts import N_ENERGY as PAIR_N_ENERGY
-from .sphere_contacts import sphere_pair_forces, sum_pair_forces
 from .walls import BLOCK as WALL_BLOCK
 from .walls import N_ENERGY as WALL_N_ENERGY
-from .walls import FacetMesh, PlaneWall, facet_contacts, facet_vertex_forces, plane_wall_contacts
+from .walls import FacetMesh, PlaneWall, facet_contacts, facet_vertex_forces
 
 STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
                "elastic_normal", "elastic_tangential", "elastic_rolling")
@@ -84,9 +84,7 @@ class Engine:
         self.time = 0.0
         self.step_count = 0
         self._setup_facet_topology()
-        n, nw = particles.n, len(self.walls)
-        self.wall_history = np.zeros((n, nw, 6))
-        self.wall_fn = np.zeros((n, nw))
+        n = particles.n
         self.acceleration = np.zeros((n, 3))  # last step's (v^{n+½} − v^{n−½})/Δt, for the dashpot
         self._allocate_pair_arrays(0)
         self._energy_reset()
@@ -111,9 +109,10 @@ class Engine:
         self._vertex_force = np.zeros((v_off, 3))
 
     def _allocate_pair_arrays(self, m):
+        """Per-pair results of the last step, in the neighbour list's storage order:
+        force on i, n × F (for the torques), overlap."""
         self.pair_force = np.zeros((m, 3))
-        self.pair_torque_i = np.zeros((m, 3))
-        self.pair_torque_j = np.zeros((m, 3))
+        self.pair_cross = np.zeros((m, 3))
         self.pair_overlap = np.zeros(m)
         m_f = self.neighbors.f_tri.size
         self.facet_force = np.zeros((m_f, 3))
@@ -136,76 +135,109 @@ class Engine:
     # ------------------------------------------------------------------ the step
     def step(self):
         """Advance one time step Δt (sequence in the module docstring)."""
+        self.run(1)
+
+    def run(self, nsteps):
+        """Advance ``nsteps`` steps."""
+        nsteps = int(nsteps)
+        done = 0
+        while done < nsteps:
+            self._book_boundary_jumps()
+            self._update_lists()
+            if self.facets:
+                self._step_with_facets()
+                done += 1
+                continue
+            todo = min(nsteps - done, self.neighbors.perm_step + fused.PERM_EVERY - self.step_count)
+            done += self._advance(todo)
+
+    def _wall_arrays(self):
+        if not self.walls:
+            z = np.zeros((0, 3))
+            return z, z.copy(), z.copy(), np.zeros(0, np.int32)
+        return (np.array([w.point for w in self.walls]), np.array([w.normal for w in self.walls]),
+                np.array([w.velocity for w in self.walls]), np.array([w.material for w in self.walls], np.int32))
+
+    def _update_lists(self):
+        p = self.particles
+        nl = self.neighbors
+        vertices = self._gather_facets()[0]
+        wp, wn, _, _ = self._wall_arrays()
+        refresh = nl.perm is not None and self.step_count >= nl.perm_step + fused.PERM_EVERY
+        if refresh or nl.needs_rebuild(p.pos, p.n, vertices, wp, wn):
+            if refresh or nl.perm is None:
+                nl.perm_step = self.step_count
+            nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, p.n_owned, new_order=refresh)
+            self._allocate_pair_arrays(nl.pair_j.size)
+
+    def _kernel_args(self, wall_point, wall_normal, wall_vel, wall_mat):
+        p = self.particles
+        nl = self.neighbors
+        return (self.law, self.dt, self.gravity, self.local_damping, self.viscous_damping, p.n_owned,
+                p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia, p.material, p.blocked,
+                p.prescribed, p.prescribed_velocity, p.force, p.torque, self.young, self.pair_params,
+                nl.perm, nl.i_start, nl.pair_j, nl.j_start, nl.j_pairs, nl.history, self.pair_force,
+                self.pair_cross, self.pair_overlap, wall_point, wall_normal, wall_vel, wall_mat,
+                nl.w_start, nl.w_idx, nl.w_hist, nl.w_fn, nl.w_force, nl.ref_pos, nl.ref_wall_point,
+                nl.skin)
+
+    def _advance(self, nsteps):
+        """Fused steps (no facets) until ``nsteps`` are done or the lists need a rebuild."""
+        wp, wn, wv, wm = self._wall_arrays()
+        clock = np.array([self.time, 0.0])
+        fused.advance(nsteps, True, *self._kernel_args(wp, wn, wv, wm), self._books, clock, np.zeros(11))
+        done = int(clock[1])
+        self.time = float(clock[0])
+        self.step_count += done
+        self._finish_walls(wp)
+        return done
+
+    def _finish_walls(self, wall_point):
+        nl = self.neighbors
+        if not self.walls:
+            return
+        totals = fused.wall_totals(len(self.walls), nl.w_idx, nl.w_particle, nl.w_order, nl.w_force, WALL_BLOCK)
+        for w, wall in enumerate(self.walls):
+            wall.force = totals[w].copy()
+            wall.point = wall_point[w].copy()
+            wall._engine_point = wall.point.copy()
+
+    def _step_with_facets(self):
+        """One step with facet meshes: fused sphere + wall forces, facets, leapfrog."""
         p = self.particles
         dt = self.dt
-        # 1. boundaries moved from outside since the last step
-        self._book_boundary_jumps()
-        vertices, vertex_vel = self._gather_facets()
-        # 2. neighbour update
-        if self.neighbors.needs_rebuild(p.pos, p.n, vertices):
-            self.neighbors.build(p.pos, p.radius, p.n, vertices, self._triangles)
-            self._allocate_pair_arrays(self.neighbors.pair_i.size)
         nl = self.neighbors
-        # 3. sphere–sphere contacts, then per-particle sums (this resets force/torque)
-        pair_energy = np.zeros(((nl.pair_i.size + PAIR_BLOCK - 1) // PAIR_BLOCK, PAIR_N_ENERGY))
-        sphere_pair_forces(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
-                           p.material, self.young, self.pair_params, nl.pair_i, nl.pair_j, nl.history, self.pair_force,
-                           self.pair_torque_i, self.pair_torque_j, self.pair_overlap, pair_energy)
-        sum_pair_forces(p.n_owned, nl.i_start, nl.j_start, nl.j_pairs, self.pair_force, self.pair_torque_i,
-                        self.pair_torque_j, p.force, p.torque)
-        # 4. plane walls and facet meshes
+        vertices, vertex_vel = self._gather_facets()
+        wp, wn, wv, wm = self._wall_arrays()
+        e_out = np.zeros(11)
+        fused.advance(1, False, *self._kernel_args(wp, wn, wv, wm), self._books, np.zeros(2), e_out)
+        pe = e_out[:5]
+        we = e_out[5:11]
         n_blocks = (p.n_owned + WALL_BLOCK - 1) // WALL_BLOCK
-        wall_energy = np.zeros((n_blocks, WALL_N_ENERGY))
         facet_energy = np.zeros((n_blocks, WALL_N_ENERGY))
-        if self.walls:
-            wall_force = np.zeros((n_blocks, len(self.walls), 3))
-            plane_wall_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
-                                p.material, p.n_owned, self.young, self.pair_params,
-                                np.array([w.point for w in self.walls]), np.array([w.normal for w in self.walls]),
-                                np.array([w.velocity for w in self.walls]),
-                                np.array([w.material for w in self.walls], np.int32),
-                                self.wall_history, self.wall_fn, p.force, p.torque, wall_force, wall_energy)
-            totals = wall_force.sum(axis=0)
-            for w, wall in enumerate(self.walls):
-                wall.force = totals[w].copy()
-        if self.facets:
-            facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
-                           p.material, p.n_owned, self.young, self.pair_params, vertices, vertex_vel, self._triangles,
-                           self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start,
-                           nl.f_tri, nl.facet_history, self.facet_active, p.force, p.torque, self.facet_force, self.facet_lambda,
-                           facet_energy)
-            facet_vertex_forces(self._triangles, nl.f_start, nl.f_tri, self.facet_force, self.facet_lambda,
-                                self._vertex_force)
-            self._scatter_facet_forces()
-        # 5. gravity, background damping, leapfrog
+        facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
+                       p.material, p.n_owned, self.young, self.pair_params, vertices, vertex_vel, self._triangles,
+                       self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start,
+                       nl.f_tri, nl.facet_history, self.facet_active, p.force, p.torque, self.facet_force,
+                       self.facet_lambda, facet_energy)
+        facet_vertex_forces(self._triangles, nl.f_start, nl.f_tri, self.facet_force, self.facet_lambda,
+                            self._vertex_force)
+        self._scatter_facet_forces()
         integrate_energy = np.zeros(((p.n_owned + INTEGRATE_BLOCK - 1) // INTEGRATE_BLOCK, INTEGRATE_N_ENERGY))
         leapfrog(dt, self.gravity, self.local_damping, self.viscous_damping, p.n_owned, p.pos, p.vel,
                  self.acceleration, p.angvel, p.mass, p.inertia, p.blocked, p.prescribed,
                  p.prescribed_velocity, p.force, p.torque, integrate_energy)
-        # 6. energy record (sums in block order: deterministic)
-        pe = pair_energy.sum(axis=0) if pair_energy.size else np.zeros(PAIR_N_ENERGY)
-        we = wall_energy.sum(axis=0) + facet_energy.sum(axis=0)
+        we = we + facet_energy.sum(axis=0)
         ie = integrate_energy.sum(axis=0)
-        self._energy_record(
-            state={"kinetic_translational": ie[0], "kinetic_rotational": ie[1], "gravity": ie[2],
-                   "elastic_normal": pe[0] + we[1], "elastic_tangential": pe[1] + we[2],
-                   "elastic_rolling": pe[2] + we[3]},
-            increments={"work_walls": we[0], "work_boundary": ie[4], "friction": pe[3] + we[4],
-                        "contact_damping": pe[4] + we[5], "background_damping": ie[3]})
-        # 7. boundaries advance
-        for wall in self.walls:
-            wall.point = wall.point + wall.velocity * dt
-            wall._engine_point = wall.point.copy()
+        fused.record_energy(self._books, pe, we, ie)
+        for w in range(wp.shape[0]):
+            wp[w] = wp[w] + wv[w] * dt
+        self._finish_walls(wp)
         for mesh in self.facets:
             mesh.vertices += mesh.vertex_velocity * dt
             mesh._engine_vertices = mesh.vertices.copy()
         self.time += dt
         self.step_count += 1
-
-    def run(self, nsteps):
-        """Advance ``nsteps`` steps."""
-        for _ in range(int(nsteps)):
-            self.step()
 
     # ------------------------------------------------------------------ boundaries
     def _gather_facets(self):
@@ -238,21 +270,13 @@ class Engine:
 
     # ------------------------------------------------------------------ energy
     def _energy_reset(self):
-        self._state = {k: 0.0 for k in STATE_TERMS}
-        self._acc = {k: 0.0 for k in RATE_TERMS}
-        self._first = {k: 0.0 for k in RATE_TERMS}
-        self._last = {k: 0.0 for k in RATE_TERMS}
-        self._initial_total = None
+        # state (STATE_TERMS), accumulated / first / last increments (RATE_TERMS),
+        # initial total, initialised flag (layout of fused.record_energy)
+        self._books = np.zeros(fused.N_BOOKS)
         self._jump_work = 0.0
 
-    def _energy_record(self, state, increments):
-        self._state = {k: float(v) for k, v in state.items()}
-        for k, v in increments.items():
-            self._acc[k] += float(v)
-            self._last[k] = float(v)
-        if self._initial_total is None:
-            self._first = {k: float(v) for k, v in increments.items()}
-            self._initial_total = sum(self._state.values())
+    def _book(self, offset, terms):
+        return {k: float(self._books[offset + m]) for m, k in enumerate(terms)}
 
     def energy(self):
         """Energy balance at time tⁿ of the last step (DESIGN.md §2 diagnostics).
@@ -263,25 +287,53 @@ class Engine:
         integrated with the trapezoidal rule over the recorded steps, and
         ``residual = total − (initial_total + work − dissipated)``.
         """
-        if self._initial_total is None:  # before the first step: current velocities, no contacts yet
+        initialised = self._books[22] != 0.0
+        if not initialised:  # before the first step: current velocities, no contacts yet
             p = self.particles
             n = p.n_owned
-            self._state["kinetic_translational"] = float(0.5 * np.sum(p.mass[:n, None] * p.vel[:n] ** 2))
-            self._state["kinetic_rotational"] = float(0.5 * np.sum(p.inertia[:n, None] * p.angvel[:n] ** 2))
-            self._state["gravity"] = float(-np.sum(p.mass[:n] * (p.pos[:n] @ self.gravity)))
-        out = dict(self._state)
+            self._books[0] = float(0.5 * np.sum(p.mass[:n, None] * p.vel[:n] ** 2))
+            self._books[1] = float(0.5 * np.sum(p.inertia[:n, None] * p.angvel[:n] ** 2))
+            self._books[2] = float(-np.sum(p.mass[:n] * (p.pos[:n] @ self.gravity)))
+        state = self._book(0, STATE_TERMS)
+        acc, first, last = self._book(6, RATE_TERMS), self._book(11, RATE_TERMS), self._book(16, RATE_TERMS)
+        out = dict(state)
         out["kinetic"] = out["kinetic_translational"] + out["kinetic_rotational"]
         for k in RATE_TERMS:
-            out[k] = self._acc[k] - 0.5 * (self._first[k] + self._last[k])
+            out[k] = acc[k] - 0.5 * (first[k] + last[k])
         out["work_walls"] += self._jump_work
-        out["total"] = sum(self._state.values())
-        out["initial_total"] = out["total"] if self._initial_total is None else self._initial_total
+        out["total"] = sum(state.values())
+        out["initial_total"] = float(self._books[21]) if initialised else out["total"]
         out["work"] = sum(out[k] for k in WORK_TERMS)
         out["dissipated"] = sum(out[k] for k in DISSIPATION_TERMS)
         out["residual"] = out["total"] - (out["initial_total"] + out["work"] - out["dissipated"])
         return out
 
     # ------------------------------------------------------------------ contacts
+    @property
+    def wall_history(self):
+        """Dense (n, n_walls, 6) copy of the plane-wall contact history (stored sparse)."""
+        nl = self.neighbors
+        out = np.zeros((self.particles.n, len(self.walls), 6))
+        out[nl.w_particle, nl.w_idx] = nl.w_hist
+        return out
+
+    @property
+    def wall_fn(self):
+        """Dense (n, n_walls) copy of the last step's normal force per sphere–wall contact."""
+        nl = self.neighbors
+        out = np.zeros((self.particles.n, len(self.walls)))
+        out[nl.w_particle, nl.w_idx] = nl.w_fn
+        return out
+
+    def memory_bytes(self):
+        """nbytes of every per-particle and per-contact array the engine holds, by name."""
+        out = {f"particles.{k}": v.nbytes for k, v in self.particles.arrays().items()}
+        out["acceleration"] = self.acceleration.nbytes
+        for k in ("pair_force", "pair_cross", "pair_overlap", "facet_force", "facet_lambda", "facet_active"):
+            out[k] = getattr(self, k).nbytes
+        out.update(self.neighbors.memory_bytes())
+        return out
+
     def contacts(self):
         """Active contacts of the last step (forces at tⁿ; positions are the current ones).
 
@@ -293,9 +345,11 @@ class Engine:
         """
         p = self.particles
         nl = self.neighbors
-        active = self.pair_overlap > 0.0
+        active = np.nonzero(self.pair_overlap > 0.0)[0]
         i = nl.pair_i[active].astype(np.int64)
         j = nl.pair_j[active].astype(np.int64)
+        order = np.argsort(i * p.n + j)  # canonical (i, j) order
+        active, i, j = active[order], i[order], j[order]
         branch = p.pos[j] - p.pos[i]
         dist = np.linalg.norm(branch, axis=1)
         normal = branch / dist[:, None] if dist.size else branch
@@ -303,10 +357,14 @@ class Engine:
         point = p.pos[i] + (p.radius[i] - 0.5 * overlap)[:, None] * normal
         out = {"i": i, "j": j, "force": self.pair_force[active], "overlap": overlap, "normal": normal,
                "branch": branch, "point": point}
-        wp, wi = np.nonzero(self.wall_fn[: p.n_owned] > 0.0)
+        live = np.nonzero(nl.w_fn > 0.0)[0]
+        nw = max(len(self.walls), 1)
+        live = live[np.argsort(nl.w_particle[live].astype(np.int64) * nw + nl.w_idx[live])]
+        wp = nl.w_particle[live].astype(np.int64)
+        wi = nl.w_idx[live].astype(np.int64)
         if wp.size:
             wn = np.array([w.normal for w in self.walls])[wi]
-            wf = self.wall_fn[wp, wi][:, None] * wn + self.wall_history[wp, wi, :3]
+            wf = nl.w_fn[live][:, None] * wn + nl.w_hist[live, :3]
             dist = np.einsum("ij,ij->i", p.pos[wp] - np.array([w.point for w in self.walls])[wi], wn)
             wpoint = p.pos[wp] - (0.5 * (p.radius[wp] + dist))[:, None] * wn  # overlap midpoint
         else:
@@ -339,17 +397,14 @@ class Engine:
                 data[f"facet{k}_source_nodes"] = mesh.source_nodes
         for k, v in self.neighbors.state().items():
             data[f"nl_{k}"] = v
-        for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
-                     "pair_overlap", "facet_force", "facet_lambda", "gravity", "acceleration"):
+        for name in ("pair_force", "pair_cross", "pair_overlap", "facet_force", "facet_lambda", "gravity",
+                     "acceleration"):
             data[name] = getattr(self, name)
         data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
                                    self.time])
         data["step_count"] = np.int64(self.step_count)
         data["contact_law"] = np.array(self.contact_law)
-        for group in ("_state", "_acc", "_first", "_last"):
-            d = getattr(self, group)
-            data[f"energy{group}"] = np.array([d[k] for k in sorted(d)])
-        data["energy_initial"] = np.array(np.nan if self._initial_total is None else self._initial_total)
+        data["energy_books"] = self._books
         data["energy_jump"] = np.array(self._jump_work)
         np.savez(path, **data)
 
@@ -383,17 +438,13 @@ class Engine:
                      viscous_damping=viscous, skin=float(d["nl_skin"]))
         for k, mesh in enumerate(facets):
             mesh._engine_vertices = d[f"facet{k}__engine_vertices"].copy()
-        engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
+        if "nl_perm" in d:
+            engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
         engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)
-        for name in ("wall_history", "wall_fn", "pair_force", "pair_torque_i", "pair_torque_j",
-                     "pair_overlap", "facet_force", "facet_lambda", "acceleration"):
+        for name in ("pair_force", "pair_cross", "pair_overlap", "facet_force", "facet_lambda", "acceleration"):
             setattr(engine, name, d[name].copy())
         engine.time = float(time)
         engine.step_count = int(d["step_count"])
-        for group, keys in (("_state", STATE_TERMS), ("_acc", RATE_TERMS), ("_first", RATE_TERMS),
-                            ("_last", RATE_TERMS)):
-            setattr(engine, group, {k: float(v) for k, v in zip(sorted(keys), d[f"energy{group}"])})
-        initial = float(d["energy_initial"])
-        engine._initial_total = None if math.isnan(initial) else initial
+        engine._books = d["energy_books"].copy()
         engine._jump_work = float(d["energy_jump"])
         return engine

@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from . import fused
+
 MAX_CELLS_PER_PARTICLE = 8
 
 
@@ -301,43 +303,107 @@ def max_displacement(pos, ref_pos, n_active):
     return math.sqrt(m)
 
 
-class NeighborList:
-    """Verlet lists (sphere pairs and sphere–facet candidates) with contact history.
 
-    ``history``: (m, 6) per sphere pair = tangential spring force (3), rolling moment (3).
+class NeighborList:
+    """Verlet lists (sphere pairs, plane-wall and sphere–facet candidates) with contact history.
+
+    Pairs are stored grouped by their i-side particle (i < j) in the spatial order
+    ``perm`` (see :mod:`de_domain.fused`): ``pair_j`` (m,), ``history`` (m, 6) =
+    tangential spring force (3), rolling moment (3); ``pair_i`` is derived on demand.
+    Plane-wall candidates: ``w_idx``/``w_particle`` (walls within r + skin at the
+    build), ``w_hist`` (·, 6), ``w_fn``, ``w_force`` (force on the particle).
     ``facet_history``: (m_f, 6) per sphere–triangle candidate, same layout.
     """
 
     def __init__(self, skin, max_cells_per_particle=MAX_CELLS_PER_PARTICLE):
         self.skin = float(skin)
         self.max_cells_per_particle = max_cells_per_particle
-        self.pair_i = np.empty(0, np.int32)
+        self.perm = None
+        self.perm_step = 0
+        self.iperm = np.empty(0, np.int32)
+        self.i_start = np.zeros(1, np.int64)
         self.pair_j = np.empty(0, np.int32)
         self.history = np.zeros((0, 6))
+        self.j_start = np.zeros(1, np.int64)
+        self.j_pairs = np.empty(0, np.int32)
         self.f_start = np.zeros(1, np.int64)
         self.f_tri = np.empty(0, np.int32)
         self.facet_history = np.zeros((0, 6))
+        self.w_start = np.zeros(1, np.int64)
+        self.w_idx = np.empty(0, np.int32)
+        self.w_particle = np.empty(0, np.int32)
+        self.w_order = np.empty(0, np.int32)
+        self.w_hist = np.zeros((0, 6))
+        self.w_fn = np.zeros(0)
+        self.w_force = np.zeros((0, 3))
         self.ref_pos = None
         self.ref_vertices = None
+        self.ref_wall_point = np.zeros((0, 3))
+        self.ref_wall_normal = np.zeros((0, 3))
         self.n_builds = 0
 
-    def needs_rebuild(self, pos, n_active, vertices):
-        if self.ref_pos is None or self.ref_pos.shape[0] != n_active:
+    @property
+    def pair_i(self):
+        if self.perm is None:
+            return np.empty(0, np.int32)
+        return fused.pair_i_of(self.perm, self.i_start)
+
+    def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None):
+        if self.ref_pos is None or self.ref_pos.shape[0] != n_active or self.perm is None:
+            return True
+        if wall_point is None:
+            wall_point = wall_normal = np.zeros((0, 3))
+        if wall_point.shape != self.ref_wall_point.shape or not np.array_equal(wall_normal, self.ref_wall_normal):
             return True
         dp = max_displacement(pos, self.ref_pos, n_active)
         dv = max_displacement(vertices, self.ref_vertices, vertices.shape[0]) if vertices.shape[0] else 0.0
+        if wall_point.shape[0]:
+            dv = max(dv, max_displacement(wall_point, self.ref_wall_point, wall_point.shape[0]))
         return dp + max(dp, dv) > self.skin
 
-    def build(self, pos, radius, n_active, vertices, triangles):
-        """Rebuild both lists and carry the contact history over by pair key."""
+    def build(self, pos, radius, n_active, vertices, triangles, wall_point=None, wall_normal=None,
+              n_owned=None, new_order=False):
+        """Rebuild all lists and carry the contact history over by key. The spatial
+        order ``perm`` is kept unless ``new_order`` (or there is none yet)."""
+        if wall_point is None:
+            wall_point = wall_normal = np.zeros((0, 3))
+        n_owned = n_active if n_owned is None else n_owned
         max_cells = max(1000, self.max_cells_per_particle * n_active)
-        pair_i, pair_j, i_start, grid = build_pair_list(pos, radius, n_active, self.skin, max_cells)
+        r_max = float(radius[:n_active].max())
+        grid = build_cell_grid(pos, n_active, 2.0 * r_max + self.skin, max_cells)
+        lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
         n = np.int64(n_active)
         old_keys = self.pair_i.astype(np.int64) * n + self.pair_j
-        new_keys = pair_i.astype(np.int64) * n + pair_j
-        self.history = transfer_history(old_keys, self.history, new_keys)
-        self.pair_i, self.pair_j, self.i_start = pair_i, pair_j, i_start
-        self.j_start, self.j_pairs = build_j_csr(pair_j, n_active)
+        if new_order or self.perm is None or self.perm.size != n_active:
+            self.perm = cell_particles.astype(np.int32)
+            self.iperm = np.empty(n_active, np.int32)
+            self.iperm[self.perm] = np.arange(n_active, dtype=np.int32)
+        perm = self.perm
+        i_start = np.zeros(n_active + 1, dtype=np.int64)
+        dummy = np.empty(0, dtype=np.int32)
+        fused.count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+                                  n_active, i_start, dummy, False)
+        i_start = np.cumsum(i_start)
+        pair_j = np.empty(i_start[-1], dtype=np.int32)
+        fused.count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+                                  n_active, i_start, pair_j, True)
+        self.i_start = i_start
+        self.pair_j = pair_j
+        self.history = transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j)
+        self.j_start, self.j_pairs = fused.build_j_side(perm, self.iperm, i_start, pair_j)
+        # plane walls
+        nw = np.int64(max(wall_point.shape[0], 1))
+        old_keys = self.w_particle.astype(np.int64) * nw + self.w_idx
+        old_hist = np.concatenate([self.w_hist, self.w_fn[:, None], self.w_force], axis=1)
+        self.w_start, self.w_idx, self.w_particle, self.w_order = fused.build_wall_candidates(
+            pos, radius, self.skin, perm, self.iperm, n_owned, wall_point, wall_normal)
+        new_hist = transfer_history(old_keys, old_hist, self.w_particle.astype(np.int64) * nw + self.w_idx)
+        self.w_hist = np.ascontiguousarray(new_hist[:, :6])
+        self.w_fn = np.ascontiguousarray(new_hist[:, 6])
+        self.w_force = np.ascontiguousarray(new_hist[:, 7:])
+        self.ref_wall_point = wall_point.copy()
+        self.ref_wall_normal = wall_normal.copy()
+        # facets
         if triangles.shape[0]:
             f_start, f_tri = build_facet_list(pos, radius, n_active, self.skin, vertices, triangles, grid)
         else:
@@ -355,26 +421,31 @@ class NeighborList:
         counts = np.diff(self.f_start)
         return np.repeat(np.arange(counts.size, dtype=np.int64), counts)
 
+    def memory_bytes(self):
+        names = ("perm", "iperm", "i_start", "pair_j", "history", "j_start", "j_pairs", "f_start", "f_tri",
+                 "facet_history", "w_start", "w_idx", "w_particle", "w_order", "w_hist", "w_fn", "w_force",
+                 "ref_pos")
+        return {f"neighbors.{k}": getattr(self, k).nbytes for k in names if getattr(self, k) is not None}
+
+    STATE = ("perm", "i_start", "pair_j", "history", "f_start", "f_tri", "facet_history", "w_start", "w_idx",
+             "w_hist", "w_fn", "w_force", "ref_pos", "ref_vertices", "ref_wall_point", "ref_wall_normal")
+
     def state(self):
-        """Arrays that make the list and its history restartable bit-for-bit."""
-        return {
-            "pair_i": self.pair_i, "pair_j": self.pair_j, "history": self.history,
-            "f_start": self.f_start, "f_tri": self.f_tri, "facet_history": self.facet_history,
-            "ref_pos": self.ref_pos, "ref_vertices": self.ref_vertices,
-            "skin": np.float64(self.skin), "n_builds": np.int64(self.n_builds),
-        }
+        """Arrays that make the lists and their history restartable bit-for-bit."""
+        out = {} if self.perm is None else {k: getattr(self, k) for k in self.STATE}
+        out.update(pair_i=self.pair_i, skin=np.float64(self.skin), n_builds=np.int64(self.n_builds),
+                   perm_step=np.int64(self.perm_step))
+        return out
 
     def set_state(self, state):
         self.skin = float(state["skin"])
         self.n_builds = int(state["n_builds"])
-        self.pair_i = state["pair_i"].astype(np.int32)
-        self.pair_j = state["pair_j"].astype(np.int32)
-        self.history = state["history"].copy()
-        n_active = state["ref_pos"].shape[0]
-        self.i_start = np.concatenate(([0], np.cumsum(np.bincount(self.pair_i, minlength=n_active)))).astype(np.int64)
-        self.j_start, self.j_pairs = build_j_csr(self.pair_j, n_active)
-        self.f_start = state["f_start"].astype(np.int64)
-        self.f_tri = state["f_tri"].astype(np.int32)
-        self.facet_history = state["facet_history"].copy()
-        self.ref_pos = state["ref_pos"].copy()
-        self.ref_vertices = state["ref_vertices"].copy()
+        self.perm_step = int(state["perm_step"])
+        for k in self.STATE:
+            setattr(self, k, state[k].copy())
+        n = self.perm.size
+        self.iperm = np.empty(n, np.int32)
+        self.iperm[self.perm] = np.arange(n, dtype=np.int32)
+        self.j_start, self.j_pairs = fused.build_j_side(self.perm, self.iperm, self.i_start, self.pair_j)
+        self.w_particle = np.repeat(self.perm, np.diff(self.w_start)).astype(np.int32)
+        self.w_order = np.argsort(self.w_particle, kind="stable").astype(np.int32)

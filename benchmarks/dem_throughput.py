@@ -1,0 +1,141 @@
+"""DEM throughput on the W1 settled bed (issue 3 "Performance"; shared/benchmarks/w1).
+
+    .venv/bin/python benchmarks/dem_throughput.py                 # 5k, 20k, 80k; 1 and 2 threads
+    .venv/bin/python benchmarks/dem_throughput.py --sizes 5000 --threads 1 --repeats 1
+
+Work: the LIGGGHTS-settled beds ``bed_5000.dump`` / ``bed_20000.dump`` of
+``../shared/benchmarks/w1`` (r 0.8–1.2 mm, ρ 2650 kg/m³) in a box [0, L]² × [0, 0.06] m
+of six plane walls, gravity −9.81 z, linear law with k_n = 2 E r* = 1e5 N/m at
+r = 1 mm (E = 5e7 Pa), k_t/k_n = 0.25 (κ = 4), μ = 0.5, restitution 0.5 (the
+LIGGGHTS deck's coefficientRestitution), no background damping, Δt = 2e-6 s fixed,
+Verlet skin 0.2 mm (the deck's ``neighbor 0.0002``).
+The 80,000 bed is the 20,000 bed tiled 2 × 2 in x and y (copies shifted by L = 0.076 m;
+box 0.152 × 0.152 × 0.06 m, walls only on the outer faces: the copies touch along the
+former inner walls, a few spheres there start with small overlaps and push apart).
+
+Per (N, threads): one untimed step (neighbour build, JIT if not yet done), then
+``engine.run(2000)`` timed; ``REPEATS`` times, median reported (a fresh engine each
+time). "JIT" is the time of the very first step of a throw-away 5k engine in this
+process (Numba compilation, or loading the on-disk cache), excluded from the rates.
+Memory per particle: ``Engine.memory_bytes()`` (nbytes of every per-particle and
+per-contact array the engine holds) / N. Threading: see ``de_domain.threading``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+W1 = Path(__file__).resolve().parents[2] / "shared" / "benchmarks" / "w1"
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+STEPS = 2000
+DT = 2e-6
+HEIGHT = 0.06
+SKIN = 2e-4
+
+
+def load_dump(path):
+    """LIGGGHTS dump (9 header lines, ``id radius x y z``) → (pos, radius, L)."""
+    lines = Path(path).read_text().split("\n")
+    L = float(lines[5].split()[1])
+    data = np.loadtxt(lines[9:], ndmin=2)
+    data = data[np.argsort(data[:, 0])]
+    return data[:, 2:5].copy(), data[:, 1].copy(), L
+
+
+def bed(n):
+    """(pos, radius, L) of the W1 bed with n = 5000, 20000 or 80000 (2 × 2 tiling of 20k)."""
+    if n in (5000, 20000):
+        return load_dump(W1 / f"bed_{n}.dump")
+    if n == 80000:
+        pos, radius, L = load_dump(W1 / "bed_20000.dump")
+        tiles = [pos + np.array([ix * L, iy * L, 0.0]) for ix in (0, 1) for iy in (0, 1)]
+        return np.concatenate(tiles), np.tile(radius, 4), 2 * L
+    raise ValueError(f"no W1 bed of {n} spheres (5000, 20000, 80000)")
+
+
+def make_engine(pos, radius, L):
+    from de_domain import Engine, Material, Particles, PlaneWall
+
+    mat = [Material(density=2650.0, young=5e7, poisson=0.25, friction=0.5, restitution=0.5,
+                    stiffness_ratio=4.0)]
+    p = Particles.from_spheres(pos, radius, materials=mat)
+    walls = [PlaneWall((0, 0, 0), (1, 0, 0)), PlaneWall((L, 0, 0), (-1, 0, 0)),
+             PlaneWall((0, 0, 0), (0, 1, 0)), PlaneWall((0, L, 0), (0, -1, 0)),
+             PlaneWall((0, 0, 0), (0, 0, 1)), PlaneWall((0, 0, HEIGHT), (0, 0, -1))]
+    return Engine(p, mat, walls=walls, gravity=(0.0, 0.0, -9.81), dt=DT, skin=SKIN)
+
+
+def jit_time():
+    """First step of a throw-away engine: compilation or cache load (+ a 5k build)."""
+    pos, radius, L = bed(5000)
+    engine = make_engine(pos, radius, L)
+    t0 = time.perf_counter()
+    engine.run(1)
+    t1 = time.perf_counter()
+    engine.run(1)
+    return (t1 - t0) - (time.perf_counter() - t1)
+
+
+def measure(n, threads, steps=STEPS):
+    import numba
+
+    numba.set_num_threads(threads)
+    pos, radius, L = bed(n)
+    engine = make_engine(pos, radius, L)
+    engine.run(1)
+    t0 = time.perf_counter()
+    engine.run(steps)
+    wall = time.perf_counter() - t0
+    c = engine.contacts()
+    contacts = (2 * c["i"].size + c["wall_particle"].size) / n
+    mem = sum(engine.memory_bytes().values()) / n if hasattr(engine, "memory_bytes") else float("nan")
+    return {"n": n, "threads": threads, "wall": wall, "rate": n * steps / wall, "contacts": contacts,
+            "mem": mem, "builds": engine.neighbors.n_builds}
+
+
+def run_table(sizes, threads_list, repeats, steps=STEPS, out=print):
+    import numba
+
+    from de_domain import threading as dthreading
+
+    jit = jit_time()
+    out(f"# de_domain W1 throughput: {steps} steps, dt = {DT:g} s; threading {dthreading.describe()}; "
+        f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
+    out(f"# JIT / cache load (first step, excluded below): {jit:.2f} s")
+    out(f"{'N':>7} {'threads':>7} {'wall [s]':>9} {'particle-steps/s':>17} {'contacts/particle':>17} "
+        f"{'bytes/particle':>14} {'rebuilds':>8}   (median of {repeats}; all rates)")
+    rows = []
+    for n in sizes:
+        for threads in threads_list:
+            runs = [measure(n, threads, steps) for _ in range(repeats)]
+            walls = [r["wall"] for r in runs]
+            best = runs[walls.index(statistics.median_low(walls))]
+            row = dict(best, wall=statistics.median(walls), rate=n * steps / statistics.median(walls),
+                       rates=[r["rate"] for r in runs])
+            rows.append(row)
+            out(f"{n:>7} {threads:>7} {row['wall']:>9.3f} {row['rate']:>17.3e} {row['contacts']:>17.2f} "
+                f"{row['mem']:>14.0f} {row['builds']:>8}   "
+                + " ".join(f"{r:.2e}" for r in row["rates"]))
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 20000, 80000])
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--steps", type=int, default=STEPS)
+    args = ap.parse_args(argv)
+    run_table(args.sizes, args.threads, args.repeats, args.steps)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,505 @@
+"""Fused multi-step DEM kernels (the fast path of :class:`~de_domain.engine.Engine`).
+
+One step is two parallel regions, inside one njit'd loop over steps that returns
+to Python only when the Verlet lists must be rebuilt (or the requested steps are
+done):
+
+* region 1, per block of particles (in spatial order): every pair (i, j) of the
+  half list whose i-side is a particle of the block — contact force on i, its
+  n × F, overlap and contact history per pair; energy sums per block;
+* region 2, per block of particles: the force/torque on each particle gathered
+  from its i-side pairs (ascending j) then its j-side pairs (ascending i), the
+  plane walls it may touch (ascending wall index), gravity, background damping and
+  the leapfrog update; energy sums and the largest displacement per block;
+* serial: energy books, wall motion, the rebuild test.
+
+Ordering and determinism. Particles keep their positions in the public arrays;
+the loops visit them in a spatial (cell-list) order ``perm`` for cache locality.
+``perm`` is fixed when the lists are first built and refreshed every
+``PERM_EVERY`` steps (on the step count, never on rebuilds), so results do not
+depend on the thread count or the rebuild frequency. Every per-particle sum is
+taken in the canonical order of the original kernels (pairs by original index,
+i-side before j-side, walls by index), so positions, velocities, forces, torques,
+contact histories and wall forces are bit-identical to the step-by-step kernels
+of ``sphere_contacts``/``walls``/``integrate``; only the energy books are summed
+in a different (fixed) block order.
+
+Storage (CSR over perm positions ``s``): pairs of particle ``perm[s]`` as i-side are
+``i_start[s]:i_start[s+1]`` (partner ``pair_j``, sorted by index); its j-side pairs
+are ``j_pairs[j_start[s]:j_start[s+1]]`` (sorted by i). Plane-wall candidates
+(walls within r + skin at the build) are ``w_start[s]:w_start[s+1]`` with their
+own sparse history; the rebuild test includes the wall displacements.
+"""
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .contact_laws import contact_force, linear_normal_stiffness, released_energy
+
+PBLOCK = 256          # particles per parallel work item (and per energy block)
+PERM_EVERY = 100_000  # steps between refreshes of the spatial order
+N_E1 = 5              # pair energies: e_normal, e_tangential, e_rolling, friction, damping
+N_E2 = 11             # wall energies (6: work, e_n, e_t, e_r, friction, damping) + integrate (5)
+N_BOOKS = 23          # state 6, acc 5, first 5, last 5, initial_total, initialised
+
+
+# --------------------------------------------------------------------------- building
+@njit(parallel=True, cache=True)
+def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell, perm,
+                        n_active, i_start, j_out, fill):
+    """Half list (partners j > i) of particle perm[s], per perm position s; sorted by j."""
+    for s in prange(n_active):
+        i = perm[s]
+        cz = particle_cell[i] % dims[2]
+        cy = (particle_cell[i] // dims[2]) % dims[1]
+        cx = particle_cell[i] // (dims[1] * dims[2])
+        count = 0
+        start = 0
+        if fill:
+            start = i_start[s]
+        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
+            for ay in range(max(cy - 1, 0), min(cy + 2, dims[1])):
+                for az in range(max(cz - 1, 0), min(cz + 2, dims[2])):
+                    c = (ax * dims[1] + ay) * dims[2] + az
+                    for q in range(cell_start[c], cell_start[c + 1]):
+                        j = cell_particles[q]
+                        if j <= i:
+                            continue
+                        cut = radius[i] + radius[j] + skin
+                        dx = pos[j, 0] - pos[i, 0]
+                        dy = pos[j, 1] - pos[i, 1]
+                        dz = pos[j, 2] - pos[i, 2]
+                        if dx * dx + dy * dy + dz * dz < cut * cut:
+                            if fill:
+                                j_out[start + count] = j
+                            count += 1
+        if not fill:
+            i_start[s + 1] = count
+        else:
+            for k in range(start + 1, start + count):  # insertion sort of the short segment
+                v = j_out[k]
+                m = k - 1
+                while m >= start and j_out[m] > v:
+                    j_out[m + 1] = j_out[m]
+                    m -= 1
+                j_out[m + 1] = v
+
+
+@njit(cache=True)
+def build_j_side(perm, iperm, i_start, pair_j):
+    """CSR over perm positions of the pairs in which the particle is j, ascending i."""
+    n = perm.size
+    counts = np.zeros(n + 1, np.int64)
+    for p in range(pair_j.size):
+        counts[iperm[pair_j[p]] + 1] += 1
+    j_start = np.cumsum(counts)
+    fill = j_start[:-1].copy()
+    j_pairs = np.empty(pair_j.size, np.int32)
+    for i in range(n):
+        s = iperm[i]
+        for p in range(i_start[s], i_start[s + 1]):
+            sj = iperm[pair_j[p]]
+            j_pairs[fill[sj]] = p
+            fill[sj] += 1
+    return j_start, j_pairs
+
+
+@njit(cache=True)
+def pair_i_of(perm, i_start):
+    out = np.empty(i_start[-1], np.int32)
+    for s in range(perm.size):
+        for p in range(i_start[s], i_start[s + 1]):
+            out[p] = perm[s]
+    return out
+
+
+@njit(cache=True)
+def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, wall_normal):
+    """Plane walls within r + skin of each owned particle (CSR over perm positions),
+    and the candidates in ascending particle order (for the wall-force totals)."""
+    n = perm.size
+    nw = wall_point.shape[0]
+    w_start = np.zeros(n + 1, np.int64)
+    for s in range(n):
+        i = perm[s]
+        c = 0
+        if i < n_owned:
+            for w in range(nw):
+                dist = 0.0
+                for d in range(3):
+                    dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+                if dist < radius[i] + skin:
+                    c += 1
+        w_start[s + 1] = w_start[s] + c
+    w_idx = np.empty(w_start[n], np.int32)
+    for s in range(n):
+        i = perm[s]
+        c = w_start[s]
+        if i < n_owned:
+            for w in range(nw):
+                dist = 0.0
+                for d in range(3):
+                    dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+                if dist < radius[i] + skin:
+                    w_idx[c] = w
+                    c += 1
+    w_particle = np.empty(w_start[n], np.int32)
+    w_order = np.empty(w_start[n], np.int32)
+    k = 0
+    for i in range(n):
+        s = iperm[i]
+        for c in range(w_start[s], w_start[s + 1]):
+            w_particle[c] = i
+            w_order[k] = c
+            k += 1
+    return w_start, w_idx, w_particle, w_order
+
+
+# --------------------------------------------------------------------------- stepping
+@njit(cache=True)
+def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
+                perm, i_start, pair_j, history, pair_force, pair_cross, pair_overlap, e1):
+    """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK)."""
+    n = perm.size
+    en = 0.0
+    et = 0.0
+    er = 0.0
+    fr = 0.0
+    dm = 0.0
+    for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
+        i = perm[s]
+        ri = radius[i]
+        mi = material[i]
+        for p in range(i_start[s], i_start[s + 1]):
+            j = pair_j[p]
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            dz = pos[j, 2] - pos[i, 2]
+            dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+            rj = radius[j]
+            overlap = ri + rj - dist
+            pair_overlap[p] = overlap
+            if overlap <= 0.0:
+                if (history[p, 0] != 0.0 or history[p, 1] != 0.0 or history[p, 2] != 0.0
+                        or history[p, 3] != 0.0 or history[p, 4] != 0.0 or history[p, 5] != 0.0):
+                    params = pair_params[mi, material[j]]
+                    k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
+                    r_red = ri * rj / (ri + rj)
+                    fr += released_energy(law, params, k_lin, r_red, r_red, history[p, 0], history[p, 1],
+                                          history[p, 2], history[p, 3], history[p, 4], history[p, 5])
+                    for k in range(6):
+                        history[p, k] = 0.0
+                for k in range(3):
+                    pair_force[p, k] = 0.0
+                    pair_cross[p, k] = 0.0
+                continue
+            nx = dx / dist
+            ny = dy / dist
+            nz = dz / dist
+            ai = ri - 0.5 * overlap
+            aj = rj - 0.5 * overlap
+            vix = vel[i, 0] + ai * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+            viy = vel[i, 1] + ai * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+            viz = vel[i, 2] + ai * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+            vjx = vel[j, 0] - aj * (angvel[j, 1] * nz - angvel[j, 2] * ny)
+            vjy = vel[j, 1] - aj * (angvel[j, 2] * nx - angvel[j, 0] * nz)
+            vjz = vel[j, 2] - aj * (angvel[j, 0] * ny - angvel[j, 1] * nx)
+            params = pair_params[mi, material[j]]
+            k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
+            r_red = ri * rj / (ri + rj)
+            m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
+            dvn = 0.5 * dt * ((accel[j, 0] - accel[i, 0]) * nx + (accel[j, 1] - accel[i, 1]) * ny
+                              + (accel[j, 2] - accel[i, 2]) * nz)
+            res = contact_force(law, params, nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz, dvn,
+                                angvel[j, 0] - angvel[i, 0], angvel[j, 1] - angvel[i, 1],
+                                angvel[j, 2] - angvel[i, 2], k_lin, r_red, r_red, m_eff,
+                                history[p, 0], history[p, 1], history[p, 2], history[p, 3], history[p, 4],
+                                history[p, 5], dt)
+            fx, fy, fz = res[0], res[1], res[2]
+            for k in range(6):
+                history[p, k] = res[3 + k]
+            pair_force[p, 0] = fx
+            pair_force[p, 1] = fy
+            pair_force[p, 2] = fz
+            pair_cross[p, 0] = ny * fz - nz * fy
+            pair_cross[p, 1] = nz * fx - nx * fz
+            pair_cross[p, 2] = nx * fy - ny * fx
+            en += res[9]
+            et += res[10]
+            er += res[11]
+            fr += res[12]
+            dm += res[13]
+    e1[b, 0] = en
+    e1[b, 1] = et
+    e1[b, 2] = er
+    e1[b, 3] = fr
+    e1[b, 4] = dm
+
+
+@njit(cache=True)
+def _gather(s, i, radius, perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross,
+            pair_overlap):
+    """Σ over i-side pairs (ascending j) then j-side pairs (ascending i); the torques
+    (a_i n) × F + M_r and (a_j n) × F − M_r with a = r − δ/2 as in the pair kernel."""
+    fx = 0.0; fy = 0.0; fz = 0.0
+    tx = 0.0; ty = 0.0; tz = 0.0
+    ri = radius[i]
+    for p in range(i_start[s], i_start[s + 1]):
+        ov = pair_overlap[p]
+        if ov <= 0.0:
+            continue
+        ai = ri - 0.5 * ov
+        fx += pair_force[p, 0]; fy += pair_force[p, 1]; fz += pair_force[p, 2]
+        tx += ai * pair_cross[p, 0] + history[p, 3]
+        ty += ai * pair_cross[p, 1] + history[p, 4]
+        tz += ai * pair_cross[p, 2] + history[p, 5]
+    for q in range(j_start[s], j_start[s + 1]):
+        p = j_pairs[q]
+        ov = pair_overlap[p]
+        if ov <= 0.0:
+            continue
+        aj = ri - 0.5 * ov
+        fx -= pair_force[p, 0]; fy -= pair_force[p, 1]; fz -= pair_force[p, 2]
+        tx += aj * pair_cross[p, 0] - history[p, 3]
+        ty += aj * pair_cross[p, 1] - history[p, 4]
+        tz += aj * pair_cross[p, 2] - history[p, 5]
+    return fx, fy, fz, tx, ty, tz
+
+
+@njit(cache=True)
+def _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_damping, n_owned,
+                    pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
+                    prescribed_velocity, force, torque, young, pair_params,
+                    perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross, pair_overlap,
+                    wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
+                    ref_pos, e2, dmax):
+    """Region 2 work item: gather, plane walls, then (if ``integrate``) gravity, damping
+    and leapfrog of the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK)."""
+    n = perm.size
+    we = np.zeros(6)
+    ke_t = 0.0
+    ke_r = 0.0
+    potential = 0.0
+    damping = 0.0
+    boundary = 0.0
+    d2max = 0.0
+    for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
+        i = perm[s]
+        if i >= n_owned:
+            continue
+        fx, fy, fz, tx, ty, tz = _gather(s, i, radius, perm, i_start, pair_j, j_start, j_pairs, history,
+                                         pair_force, pair_cross, pair_overlap)
+        r = radius[i]
+        # plane walls (DESIGN.md §2 with the wall as body j; as walls.plane_wall_contacts)
+        for c in range(w_start[s], w_start[s + 1]):
+            w = w_idx[c]
+            dist = 0.0
+            for d in range(3):
+                dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+            overlap = r - dist
+            params = pair_params[material[i], wall_mat[w]]
+            k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
+            if overlap <= 0.0:
+                if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
+                        or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
+                    we[4] += released_energy(law, params, k_lin, r, r, w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
+                                             w_hist[c, 3], w_hist[c, 4], w_hist[c, 5])
+                    for k in range(6):
+                        w_hist[c, k] = 0.0
+                w_fn[c] = 0.0
+                for k in range(3):
+                    w_force[c, k] = 0.0
+                continue
+            nx = -wall_normal[w, 0]
+            ny = -wall_normal[w, 1]
+            nz = -wall_normal[w, 2]
+            arm = r - 0.5 * overlap
+            vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+            vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+            vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+            dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
+            res = contact_force(law, params, nx, ny, nz, overlap,
+                                wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
+                                -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
+                                k_lin, r, r, mass[i], w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
+                                w_hist[c, 3], w_hist[c, 4], w_hist[c, 5], dt)
+            wfx, wfy, wfz = res[0], res[1], res[2]
+            for k in range(6):
+                w_hist[c, k] = res[3 + k]
+            w_fn[c] = -(wfx * nx + wfy * ny + wfz * nz)
+            w_force[c, 0] = wfx
+            w_force[c, 1] = wfy
+            w_force[c, 2] = wfz
+            fx += wfx
+            fy += wfy
+            fz += wfz
+            tx += arm * (ny * wfz - nz * wfy) + res[6]
+            ty += arm * (nz * wfx - nx * wfz) + res[7]
+            tz += arm * (nx * wfy - ny * wfx) + res[8]
+            we[0] += (wfx * wall_vel[w, 0] + wfy * wall_vel[w, 1] + wfz * wall_vel[w, 2]) * dt
+            for k in range(5):
+                we[k + 1] += res[9 + k]
+        force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
+        torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
+        if not integrate:
+            continue
+        # gravity, background damping, leapfrog (as integrate.leapfrog)
+        m = mass[i]
+        for d in range(6):
+            if d < 3:
+                force[i, d] += m * gravity[d]
+                f = force[i, d]
+                v = vel[i, d]
+                inv = 1.0 / m
+                weight = m
+            else:
+                f = torque[i, d - 3]
+                v = angvel[i, d - 3]
+                inv = 1.0 / inertia[i]
+                weight = inertia[i]
+            if blocked[i, d] or prescribed[i, d]:
+                v_new = prescribed_velocity[i, d] if prescribed[i, d] else v
+                v_mid = 0.5 * (v + v_new)
+                reaction = (v_new - v) * weight / dt - f
+                boundary += reaction * v_mid * dt
+            else:
+                f_damp = -viscous_damping * weight * v
+                if local_damping > 0.0 and v != 0.0:
+                    f_damp -= local_damping * abs(f) * np.sign(v)
+                v_new = v + dt * (f + f_damp) * inv
+                v_mid = 0.5 * (v + v_new)
+                damping -= f_damp * v_mid * dt
+            if d < 3:
+                ke_t += 0.5 * m * v_mid * v_mid
+                potential -= m * gravity[d] * pos[i, d]
+                accel[i, d] = (v_new - v) / dt
+                vel[i, d] = v_new
+                pos[i, d] += dt * v_new
+            else:
+                ke_r += 0.5 * weight * v_mid * v_mid
+                angvel[i, d - 3] = v_new
+        d2 = ((pos[i, 0] - ref_pos[i, 0]) ** 2 + (pos[i, 1] - ref_pos[i, 1]) ** 2
+              + (pos[i, 2] - ref_pos[i, 2]) ** 2)
+        d2max = max(d2max, d2)
+    for k in range(6):
+        e2[b, k] = we[k]
+    e2[b, 6] = ke_t
+    e2[b, 7] = ke_r
+    e2[b, 8] = potential
+    e2[b, 9] = damping
+    e2[b, 10] = boundary
+    dmax[b] = d2max
+
+
+@njit(cache=True)
+def record_energy(books, pe, we, ie):
+    """Energy books of one step (Engine.energy): state at tⁿ, increments accumulated."""
+    state = (ie[0], ie[1], ie[2], pe[0] + we[1], pe[1] + we[2], pe[2] + we[3])
+    inc = (we[0], ie[4], pe[3] + we[4], pe[4] + we[5], ie[3])
+    for k in range(6):
+        books[k] = state[k]
+    for k in range(5):
+        books[6 + k] += inc[k]
+        books[16 + k] = inc[k]
+    if books[22] == 0.0:
+        for k in range(5):
+            books[11 + k] = inc[k]
+        total = 0.0
+        for k in range(6):
+            total += state[k]
+        books[21] = total
+        books[22] = 1.0
+
+
+@njit(cache=True)
+def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
+    """Force of the particles on each wall, summed per block of ``block`` particles in
+    particle order, then over the blocks (the order of walls.plane_wall_contacts)."""
+    total = np.zeros((n_walls, 3))
+    part = np.zeros((n_walls, 3))
+    current = -1
+    for k in range(w_order.size):
+        c = w_order[k]
+        b = w_particle[c] // block
+        if b != current:
+            total += part
+            part[:, :] = 0.0
+            current = b
+        w = w_idx[c]
+        for d in range(3):
+            part[w, d] -= w_force[c, d]
+    total += part
+    return total
+
+
+@njit(parallel=True, cache=True)
+def advance(nsteps, integrate, law, dt, gravity, local_damping, viscous_damping, n_owned,
+            pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
+            prescribed_velocity, force, torque, young, pair_params,
+            perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross, pair_overlap,
+            wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
+            ref_pos, ref_wall_point, skin, books, clock, e_out):
+    """Up to ``nsteps`` steps (``integrate`` True) or, with ``integrate`` False, only the
+    sphere and wall forces of one step (the facet path integrates afterwards).
+
+    Stops early when the lists must be rebuilt before the next step. ``clock`` =
+    [time, steps done]; ``e_out`` receives the last step's summed energy terms
+    (pair 5, walls 6, integrate 5) when ``integrate`` is False. Returns whether a
+    rebuild is due.
+    """
+    n = perm.size
+    nb = (n + PBLOCK - 1) // PBLOCK
+    e1 = np.zeros((nb, N_E1))
+    e2 = np.zeros((nb, N_E2))
+    dmax = np.zeros(nb)
+    n_walls = wall_point.shape[0]
+    dw2 = 0.0
+    rebuild = False
+    for it in range(nsteps):
+        for b in prange(nb):
+            _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
+                        perm, i_start, pair_j, history, pair_force, pair_cross, pair_overlap, e1)
+        for b in prange(nb):
+            _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_damping, n_owned,
+                            pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
+                            prescribed_velocity, force, torque, young, pair_params,
+                            perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross,
+                            pair_overlap, wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx,
+                            w_hist, w_fn, w_force, ref_pos, e2, dmax)
+        pe = np.zeros(N_E1)
+        for b in range(nb):
+            for k in range(N_E1):
+                pe[k] += e1[b, k]
+        we = np.zeros(6)
+        ie = np.zeros(5)
+        for b in range(nb):
+            for k in range(6):
+                we[k] += e2[b, k]
+            for k in range(5):
+                ie[k] += e2[b, 6 + k]
+        if not integrate:
+            for k in range(N_E1):
+                e_out[k] = pe[k]
+            for k in range(6):
+                e_out[N_E1 + k] = we[k]
+            return False
+        record_energy(books, pe, we, ie)
+        d2 = 0.0
+        for b in range(nb):
+            d2 = max(d2, dmax[b])
+        dw2 = 0.0
+        for w in range(n_walls):
+            for d in range(3):
+                wall_point[w, d] = wall_point[w, d] + wall_vel[w, d] * dt
+            dd = 0.0
+            for d in range(3):
+                dd += (wall_point[w, d] - ref_wall_point[w, d]) ** 2
+            dw2 = max(dw2, dd)
+        clock[0] += dt
+        clock[1] += 1.0
+        dp = math.sqrt(d2)
+        if dp + max(dp, math.sqrt(dw2)) > skin:
+            rebuild = True
+            break
+    return rebuild
