@@ -62,8 +62,8 @@ sample_height = 0.01
 normal_stress = 100e3
 shear_distance = 1.5e-3
 ramp_distance = 1e-4
-inertial_number = 3e-3
-rows = 30
+inertial_number = 1.5e-3
+rows = 20
 band_thickness = 4e-3
 """
 
@@ -115,7 +115,7 @@ def test_outputs_of_a_run(dense):
         assert (out / name).exists(), name
     assert series["shear_displacement"][-1] >= 1.5e-3
     assert summary["peak_friction_angle_deg"] == pytest.approx(math.degrees(math.atan(summary["peak_stress_ratio"])))
-    assert summary["inertial_number"] == pytest.approx(3e-3, rel=1e-6)
+    assert summary["inertial_number"] == pytest.approx(1.5e-3, rel=1e-6)
 
 
 def test_dense_specimen_dilates(dense):
