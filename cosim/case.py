@@ -34,9 +34,10 @@ class _Section(BaseModel):
 # --------------------------------------------------------------------------- case
 class CaseInfo(_Section):
     name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
-    kind: Literal["dem", "direct_shear", "fe"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls), "
-                                                        "'direct_shear' (specimen generation + the direct shear test, DESIGN §3), "
-                                                        "'fe' (the explicit mixed u-p solid on a gmsh mesh, DESIGN §4)")
+    kind: Literal["dem", "direct_shear", "fe", "coupled"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls), "
+                                                                   "'direct_shear' (specimen generation + the direct shear test, DESIGN §3), "
+                                                                   "'fe' (the explicit mixed u-p solid on a gmsh mesh, DESIGN §4), "
+                                                                   "'coupled' (FE solid and DEM particles through an interface, DESIGN §5)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -74,6 +75,7 @@ class DemParticles(_Section):
     box: Optional[list[Vec3]] = Field(default=None, min_length=2, max_length=2, description="[[xmin,ymin,zmin],[xmax,ymax,zmax]] of the cloud [m]")
     radius: Optional[list[float]] = Field(default=None, min_length=2, max_length=2, description="[r_min, r_max], uniform radii for source='cloud' [m]")
     material: str = Field(description="material name of these spheres")
+    velocity: Vec3 = Field(default=[0.0, 0.0, 0.0], description="initial velocity of every sphere [m/s]")
 
 
 class DemWall(_Section):
@@ -184,6 +186,12 @@ class FeSection(_Section):
     reactions: list[str] = Field(default_factory=list, description="facet groups whose reaction force is written to the series CSV")
 
 
+class CouplingSection(_Section):
+    interface: str = Field(min_length=1, description="facet physical group of the FE mesh that the particles touch")
+    material: str = Field(min_length=1, description="DEM material name of the interface facets")
+    subcycles: Optional[int] = Field(default=None, ge=1, description="DEM steps per FE step [-]; default the largest the FE stability allows")
+
+
 class Case(_Section):
     case: CaseInfo
     time: TimeSection
@@ -192,6 +200,7 @@ class Case(_Section):
     specimen: Optional[SpecimenSection] = None
     direct_shear: Optional[DirectShearSection] = None
     fe: Optional[FeSection] = None
+    coupling: Optional[CouplingSection] = None
 
 
 # --------------------------------------------------------------------------- loading
@@ -318,10 +327,27 @@ def _check_consistency(path, case):
         if case.dem is None:
             raise CaseError(path, "dem", None, "a case of kind 'dem' needs a [dem] section")
         _check_dem(path, case.dem)
-    if case.case.kind == "fe":
+    if case.case.kind in ("fe", "coupled"):
         if case.fe is None:
-            raise CaseError(path, "fe", None, "a case of kind 'fe' needs an [fe] section")
+            raise CaseError(path, "fe", None, f"a case of kind '{case.case.kind}' needs an [fe] section")
         _check_fe(path, case.fe)
+    if case.case.kind == "coupled":
+        _check_coupling(path, case)
+
+
+def _check_coupling(path, case):
+    for section in ("dem", "coupling"):
+        if getattr(case, section) is None:
+            raise CaseError(path, section, None, f"a case of kind 'coupled' needs a [{section}] section")
+    _check_dem(path, case.dem)
+    names = [m.name for m in case.dem.materials]
+    if case.coupling.material not in names:
+        raise CaseError(path, "coupling.material", case.coupling.material, f"must be one of the materials: {names}")
+    mesh = mesh_path(path, case.fe.mesh)
+    surfaces = sorted(n for n, d in physical_groups(mesh).items() if d == 2)
+    if case.coupling.interface not in surfaces:
+        raise CaseError(path, "coupling.interface", case.coupling.interface,
+                        f"not a surface physical group of {mesh.name}; available: {surfaces}")
 
 
 def mesh_path(case_file, name):

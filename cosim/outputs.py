@@ -11,6 +11,7 @@ import csv
 import json
 import os
 import platform
+import re
 import sys
 import time
 from datetime import datetime, timezone
@@ -129,3 +130,27 @@ class ProgressLine:
         eta_s = time.strftime("%H:%M:%S", time.gmtime(eta)) if eta != float("inf") else "--:--:--"
         say(f"[{self.label}] step {step}/{self.total} ({100.0 * step / self.total:5.1f}%)  "
             f"t={sim_time:.4e} s  {rate:.3e} steps/s  ETA {eta_s}")
+
+
+class PvdCollection:
+    """A ParaView ``.pvd`` collection of VTU frames, rewritten atomically after each frame.
+
+    Files written together at one time are parts 0, 1, ... of that timestep (e.g.
+    particles and facet meshes). On resume the existing entries are kept up to ``resume_time``.
+    """
+
+    _ENTRY = re.compile(r'<DataSet timestep="([^"]+)" group="" part="(\d+)" file="([^"]+)"/>')
+
+    def __init__(self, path, resume_time=None):
+        self.path = Path(path)
+        self.entries = []
+        if resume_time is not None and self.path.exists():
+            self.entries = [(t, int(part), f) for t, part, f in self._ENTRY.findall(self.path.read_text())
+                            if float(t) <= resume_time * (1 + 1e-12)]
+
+    def add(self, t, files):
+        for part, f in enumerate(files):
+            self.entries.append((f"{t:.9e}", part, str(Path(f).relative_to(self.path.parent))))
+        body = "\n".join(f'    <DataSet timestep="{t}" group="" part="{part}" file="{f}"/>' for t, part, f in self.entries)
+        atomic_write_text(self.path, '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+                                     f"  <Collection>\n{body}\n  </Collection>\n</VTKFile>\n")

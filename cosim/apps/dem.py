@@ -12,7 +12,7 @@ import numpy as np
 
 from cosim.case import resolve_path
 from cosim.errors import CaseError
-from cosim.outputs import CsvSeries, ProgressLine, atomic_write_text, is_root, mpi_comm, say, write_run_metadata
+from cosim.outputs import CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, say, write_run_metadata
 
 CHECKPOINT = "checkpoint.npz"
 PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint clock
@@ -50,13 +50,14 @@ def prepare(case, case_path):
     return {"positions": positions, "radii": radii, "facets": facets}
 
 
-def build_engine(case, built):
+def build_engine(case, built, extra_facets=()):
     from de_domain import Engine, Material, Particles, PlaneWall
     dem = case.dem
     names = [m.name for m in dem.materials]
     materials = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in dem.materials]
     mat_ids = np.full(len(built["radii"]), names.index(dem.particles.material), np.int32)
-    particles = Particles.from_spheres(built["positions"], built["radii"], mat_ids, materials)
+    velocities = np.tile(np.asarray(dem.particles.velocity, float), (len(built["radii"]), 1))
+    particles = Particles.from_spheres(built["positions"], built["radii"], mat_ids, materials, velocities=velocities)
     walls, facets = [], []
     for i, w in enumerate(dem.walls):
         if w.type == "plane":
@@ -65,7 +66,7 @@ def build_engine(case, built):
             mesh = built["facets"][i]
             mesh.velocity = np.asarray(w.velocity, float)
             facets.append(mesh)
-    return Engine(particles, materials, walls=walls, facets=facets, contact_law=dem.contact_law,
+    return Engine(particles, materials, walls=walls, facets=facets + list(extra_facets), contact_law=dem.contact_law,
                   gravity=dem.gravity, dt=case.time.dt, safety_factor=case.time.safety_factor,
                   local_damping=dem.local_damping, viscous_damping=dem.viscous_damping)
 
@@ -101,7 +102,7 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     series = CsvSeries(out_dir / "series.csv",
                        ["time", "step", "unbalanced_force_ratio", "coordination_number", *energy_keys],
                        resume_time=engine.time if resume else None)
-    frames = _FrameIndex(out_dir, resume)
+    frames = PvdCollection(out_dir / "particles.pvd", engine.time if resume else None)
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=engine.step_count)
     last_checkpoint = time.perf_counter()
 
@@ -143,21 +144,3 @@ def _checkpoint(engine, path):
     tmp = path.with_name("checkpoint.tmp.npz")
     engine.save_checkpoint(tmp)
     tmp.replace(path)
-
-
-class _FrameIndex:
-    """``particles.pvd``: the ParaView collection of the VTU frames written so far."""
-
-    def __init__(self, out_dir, resume):
-        self.path = Path(out_dir) / "particles.pvd"
-        self.entries = []
-        (Path(out_dir) / "frames").mkdir(exist_ok=True)
-        if resume and self.path.exists():
-            import re
-            self.entries = re.findall(r'timestep="([^"]+)" group="" part="0" file="([^"]+)"', self.path.read_text())
-
-    def add(self, t, files):
-        for f in files if isinstance(files, (list, tuple)) else [files]:
-            self.entries.append((f"{t:.9e}", str(Path(f).relative_to(self.path.parent))))
-        body = "\n".join(f'    <DataSet timestep="{t}" group="" part="0" file="{f}"/>' for t, f in self.entries)
-        atomic_write_text(self.path, f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{body}\n  </Collection>\n</VTKFile>\n')

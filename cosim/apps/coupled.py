@@ -1,0 +1,130 @@
+"""Case kind ``coupled``: an FE solid and DEM particles that touch through a tagged
+FE boundary (DESIGN.md §5), under ``mpirun -n N`` (FE on all ranks, DEM on rank 0).
+
+Per FE step (the coupling schedule, DESIGN §5):
+  1. the FE advances v^{n+½}, u^{n+1} with the interface force of the last window;
+  2. the interface vertices start at X + u^n and move with v^{n+½};
+  3. the DEM runs ``subcycles`` steps against them, accumulating the impulse per FE node;
+  4. interface force for the next FE step = impulse / Δt_FE.
+Δt_FE = subcycles × Δt_DE, both within their stability limits.
+
+Outputs: ``series.csv`` (interface force, mean interface displacement, linear momentum
+of FE, DEM and the impulse in transit — conserved when no external force acts — and the
+DEM diagnostics), its PNG, ``fields.xdmf`` (FE), ``particles.pvd`` (particles and the
+interface facets).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from cosim.apps import dem as dem_app
+from cosim.apps import fe as fe_app
+from cosim.interface import Interface
+from cosim.outputs import CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, say, write_run_metadata
+
+PROGRESS_CHUNK = 20  # FE steps between checks of the progress line
+
+COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interface_force_z",
+           "interface_displacement_z", "momentum_fe_x", "momentum_fe_y", "momentum_fe_z",
+           "momentum_dem_x", "momentum_dem_y", "momentum_dem_z", "impulse_in_transit_x",
+           "impulse_in_transit_y", "impulse_in_transit_z", "momentum_total_x", "momentum_total_y",
+           "momentum_total_z", "unbalanced_force_ratio", "coordination_number"]
+
+
+def prepare(case, case_path):
+    return dem_app.prepare(case, case_path) if is_root() else None
+
+
+def time_steps(dem_dt, fe_dt_stable, subcycles=None):
+    """(Δt_FE, Δt_DE, n): Δt_FE = n Δt_DE with Δt_DE ≤ its stable step and Δt_FE ≤ the FE's."""
+    n = subcycles or max(1, math.floor(fe_dt_stable / dem_dt))
+    fe_dt = min(fe_dt_stable, n * dem_dt)
+    return fe_dt, fe_dt / n, n
+
+
+def run(case, resolved, case_path, out_dir, resume=False):
+    from cosim.errors import CaseError
+    if resume:
+        raise CaseError(case_path, "--resume", True, "coupled runs cannot resume yet; run without --resume")
+    comm = mpi_comm()
+    out_dir = Path(out_dir)
+    built = prepare(case, case_path)
+    solid = fe_app.build_solid(case, case_path)
+    material = [m.name for m in case.dem.materials].index(case.coupling.material)
+    interface = Interface(solid, case.coupling.interface, material)
+    engine = dem_app.build_engine(case, built, extra_facets=[interface.facets]) if is_root() else None
+    dem_dt = comm.bcast(engine.dt if engine else None, root=0)
+    fe_dt, dem_dt, n_sub = time_steps(dem_dt, case.time.safety_factor * solid.dt_critical, case.coupling.subcycles)
+    solid.dt = fe_dt
+    if engine is not None:
+        engine.dt = dem_dt
+    write_run_metadata(out_dir, case_path, resolved, case.case.seed)
+
+    total = case.time.steps or int(math.ceil(case.time.duration / fe_dt))
+    interval = case.output.interval or total * fe_dt / 20
+    every = max(1, int(round(interval / fe_dt)))
+    say(f"[{case.case.name}] FE dt = {fe_dt:.3e} s, DEM dt = {dem_dt:.3e} s ({n_sub} DEM steps per FE step), "
+        f"{total} FE steps, output every {every}")
+
+    series = CsvSeries(out_dir / "series.csv", COLUMNS) if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd") if is_root() else None
+    from fe_domain.output import FieldWriter
+    fields = FieldWriter(solid, out_dir / "fields")
+    progress = ProgressLine(case.case.name, total, case.output.progress_interval)
+    record(solid, engine, interface, series, frames, out_dir)
+    while solid.step_count < total:
+        for _ in range(min(PROGRESS_CHUNK, every - solid.step_count % every, total - solid.step_count)):
+            coupled_step(solid, engine, interface, n_sub)
+        if solid.step_count % every == 0 or solid.step_count == total:
+            record(solid, engine, interface, series, frames, out_dir)
+            fields.write()
+        progress.update(solid.step_count, solid.time)
+    progress.update(solid.step_count, solid.time, force=True)
+    fields.close()
+    if series is not None:
+        series.close()
+        from cosim.plots import plot_panels
+        plot_panels(out_dir / "series.csv", "time", [
+            ("interface force z [N]", ["interface_force_z"], False),
+            ("mean interface u_z [m]", ["interface_displacement_z"], False),
+            ("total momentum [N s]", ["momentum_total_x", "momentum_total_y", "momentum_total_z"], False),
+            ("unbalanced force ratio [-]", ["unbalanced_force_ratio"], True)], out_dir / "series.png", title=case.case.name)
+    say(f"[{case.case.name}] done: t = {solid.time:.4e} s")
+
+
+def coupled_step(solid, engine, interface, subcycles):
+    """One FE step and its DEM window, DESIGN §5 steps 1–4."""
+    solid.step()
+    interface.send_motion()
+    if engine is not None:
+        engine.run(subcycles)
+    interface.receive_forces(solid.dt)
+
+
+def momentum(solid, engine, interface):
+    """Linear momentum (N s) of the FE nodes, of the particles and of the impulse in transit."""
+    owned = slice(0, solid.n_owned_nodes)
+    fe = mpi_comm().allreduce(np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
+    if engine is None:
+        return fe, None, None
+    p = engine.particles
+    return fe, np.sum(p.mass[:p.n_owned, None] * p.vel[:p.n_owned], axis=0), interface.pending_impulse()
+
+
+def record(solid, engine, interface, series, frames, out_dir):
+    fe, de, transit = momentum(solid, engine, interface)
+    nodes = interface.owned_nodes
+    comm = mpi_comm()
+    uz = comm.allreduce(float(np.sum(solid.displacement[nodes, 2])))
+    count = comm.allreduce(len(nodes))
+    if engine is None:
+        return
+    from de_domain import diagnostics
+    from de_domain.io import write_frame
+    force = interface.facets.vertex_impulse.sum(axis=0) / solid.dt
+    series.append([solid.time, solid.step_count, *force, uz / count, *fe, *de, *transit, *(fe + de + transit),
+                   diagnostics.unbalanced_force_ratio(engine), diagnostics.coordination_number(engine)])
+    frames.add(engine.time, write_frame(out_dir / "frames", engine, solid.step_count))
