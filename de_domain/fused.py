@@ -87,22 +87,33 @@ def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, par
 
 
 @njit(cache=True)
-def build_j_side(perm, iperm, i_start, pair_j):
+def build_j_side(perm, iperm, i_start, pair_js):
     """CSR over perm positions of the pairs in which the particle is j, ascending i."""
     n = perm.size
     counts = np.zeros(n + 1, np.int64)
-    for p in range(pair_j.size):
-        counts[iperm[pair_j[p]] + 1] += 1
+    for p in range(pair_js.size):
+        counts[pair_js[p] + 1] += 1
     j_start = np.cumsum(counts)
     fill = j_start[:-1].copy()
-    j_pairs = np.empty(pair_j.size, np.int32)
+    j_pairs = np.empty(pair_js.size, np.int32)
     for i in range(n):
         s = iperm[i]
         for p in range(i_start[s], i_start[s + 1]):
-            sj = iperm[pair_j[p]]
+            sj = pair_js[p]
             j_pairs[fill[sj]] = p
             fill[sj] += 1
     return j_start, j_pairs
+
+
+def morton_order(particle_cell, dims):
+    """Particles sorted by the Morton (Z-order) code of their cell, then by index."""
+    c = particle_cell.astype(np.int64)
+    coords = (c // (dims[1] * dims[2]), (c // dims[2]) % dims[1], c % dims[2])
+    key = np.zeros(c.size, np.int64)
+    for bit in range(21):
+        for axis in range(3):
+            key |= ((coords[axis] >> bit) & 1) << (3 * bit + axis)
+    return np.argsort(key, kind="stable").astype(np.int32)
 
 
 @njit(cache=True)
@@ -159,8 +170,12 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
 # --------------------------------------------------------------------------- stepping
 @njit(cache=True)
 def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                perm, i_start, pair_j, history, pair_force, pair_cross, pair_overlap, e1):
-    """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK)."""
+                perm, i_start, pair_js, history, pair_out, force, torque, e1):
+    """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK).
+
+    ``pair_out[p]`` = force on i (3), n × F (3), overlap. The i-side part of each
+    particle's force/torque sum (ascending j) is written to ``force``/``torque``;
+    region 2 continues it with the j-side pairs."""
     n = perm.size
     en = 0.0
     et = 0.0
@@ -171,15 +186,17 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
         i = perm[s]
         ri = radius[i]
         mi = material[i]
+        sfx = 0.0; sfy = 0.0; sfz = 0.0
+        stx = 0.0; sty = 0.0; stz = 0.0
         for p in range(i_start[s], i_start[s + 1]):
-            j = pair_j[p]
+            j = perm[pair_js[p]]
             dx = pos[j, 0] - pos[i, 0]
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
             dist = np.sqrt(dx * dx + dy * dy + dz * dz)
             rj = radius[j]
             overlap = ri + rj - dist
-            pair_overlap[p] = overlap
+            pair_out[p, 6] = overlap
             if overlap <= 0.0:
                 if (history[p, 0] != 0.0 or history[p, 1] != 0.0 or history[p, 2] != 0.0
                         or history[p, 3] != 0.0 or history[p, 4] != 0.0 or history[p, 5] != 0.0):
@@ -190,9 +207,8 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
                                           history[p, 2], history[p, 3], history[p, 4], history[p, 5])
                     for k in range(6):
                         history[p, k] = 0.0
-                for k in range(3):
-                    pair_force[p, k] = 0.0
-                    pair_cross[p, k] = 0.0
+                for k in range(6):
+                    pair_out[p, k] = 0.0
                 continue
             nx = dx / dist
             ny = dy / dist
@@ -219,17 +235,26 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             fx, fy, fz = res[0], res[1], res[2]
             for k in range(6):
                 history[p, k] = res[3 + k]
-            pair_force[p, 0] = fx
-            pair_force[p, 1] = fy
-            pair_force[p, 2] = fz
-            pair_cross[p, 0] = ny * fz - nz * fy
-            pair_cross[p, 1] = nz * fx - nx * fz
-            pair_cross[p, 2] = nx * fy - ny * fx
+            cx = ny * fz - nz * fy
+            cy = nz * fx - nx * fz
+            cz = nx * fy - ny * fx
+            pair_out[p, 0] = fx
+            pair_out[p, 1] = fy
+            pair_out[p, 2] = fz
+            pair_out[p, 3] = cx
+            pair_out[p, 4] = cy
+            pair_out[p, 5] = cz
+            sfx += fx; sfy += fy; sfz += fz
+            stx += ai * cx + res[6]
+            sty += ai * cy + res[7]
+            stz += ai * cz + res[8]
             en += res[9]
             et += res[10]
             er += res[11]
             fr += res[12]
             dm += res[13]
+        force[i, 0] = sfx; force[i, 1] = sfy; force[i, 2] = sfz
+        torque[i, 0] = stx; torque[i, 1] = sty; torque[i, 2] = stz
     e1[b, 0] = en
     e1[b, 1] = et
     e1[b, 2] = er
@@ -238,40 +263,36 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
 
 
 @njit(cache=True)
-def _gather(s, i, radius, perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross,
-            pair_overlap):
-    """Σ over i-side pairs (ascending j) then j-side pairs (ascending i); the torques
-    (a_i n) × F + M_r and (a_j n) × F − M_r with a = r − δ/2 as in the pair kernel."""
-    fx = 0.0; fy = 0.0; fz = 0.0
-    tx = 0.0; ty = 0.0; tz = 0.0
+def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, history, pair_out, force, torque):
+    """Continue the i-side sums of region 1 with the j-side pairs (ascending i): −F and
+    (a_j n) × F − M_r with a_j = r_j − δ/2, as the pair kernel's torques. Without
+    rolling resistance M_r ≡ +0.0 and is not read (x − 0.0 = x exactly)."""
+    fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
+    tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
     ri = radius[i]
-    for p in range(i_start[s], i_start[s + 1]):
-        ov = pair_overlap[p]
-        if ov <= 0.0:
-            continue
-        ai = ri - 0.5 * ov
-        fx += pair_force[p, 0]; fy += pair_force[p, 1]; fz += pair_force[p, 2]
-        tx += ai * pair_cross[p, 0] + history[p, 3]
-        ty += ai * pair_cross[p, 1] + history[p, 4]
-        tz += ai * pair_cross[p, 2] + history[p, 5]
     for q in range(j_start[s], j_start[s + 1]):
         p = j_pairs[q]
-        ov = pair_overlap[p]
+        ov = pair_out[p, 6]
         if ov <= 0.0:
             continue
         aj = ri - 0.5 * ov
-        fx -= pair_force[p, 0]; fy -= pair_force[p, 1]; fz -= pair_force[p, 2]
-        tx += aj * pair_cross[p, 0] - history[p, 3]
-        ty += aj * pair_cross[p, 1] - history[p, 4]
-        tz += aj * pair_cross[p, 2] - history[p, 5]
+        fx -= pair_out[p, 0]; fy -= pair_out[p, 1]; fz -= pair_out[p, 2]
+        if rolling:
+            tx += aj * pair_out[p, 3] - history[p, 3]
+            ty += aj * pair_out[p, 4] - history[p, 4]
+            tz += aj * pair_out[p, 5] - history[p, 5]
+        else:
+            tx += aj * pair_out[p, 3]
+            ty += aj * pair_out[p, 4]
+            tz += aj * pair_out[p, 5]
     return fx, fy, fz, tx, ty, tz
 
 
 @njit(cache=True)
-def _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
-                    perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross, pair_overlap,
+                    perm, i_start, pair_js, j_start, j_pairs, history, pair_out,
                     wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
                     ref_pos, e2, dmax):
     """Region 2 work item: gather, plane walls, then (if ``integrate``) gravity, damping
@@ -288,8 +309,8 @@ def _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_dampi
         i = perm[s]
         if i >= n_owned:
             continue
-        fx, fy, fz, tx, ty, tz = _gather(s, i, radius, perm, i_start, pair_j, j_start, j_pairs, history,
-                                         pair_force, pair_cross, pair_overlap)
+        fx, fy, fz, tx, ty, tz = _gather_j_side(s, i, rolling, radius, j_start, j_pairs, history, pair_out,
+                                                force, torque)
         r = radius[i]
         # plane walls (DESIGN.md §2 with the wall as body j; as walls.plane_wall_contacts)
         for c in range(w_start[s], w_start[s + 1]):
@@ -344,22 +365,43 @@ def _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_dampi
         torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
         if not integrate:
             continue
-        # gravity, background damping, leapfrog (as integrate.leapfrog)
+        # gravity, background damping, leapfrog (as integrate.leapfrog, unrolled per DOF;
+        # same operations in the same order)
         m = mass[i]
-        for d in range(6):
-            if d < 3:
-                force[i, d] += m * gravity[d]
-                f = force[i, d]
-                v = vel[i, d]
-                inv = 1.0 / m
-                weight = m
-            else:
-                f = torque[i, d - 3]
-                v = angvel[i, d - 3]
-                inv = 1.0 / inertia[i]
-                weight = inertia[i]
-            if blocked[i, d] or prescribed[i, d]:
+        inv = 1.0 / m
+        constrained = False
+        if has_constraints:
+            for d in range(6):
+                if blocked[i, d] or prescribed[i, d]:
+                    constrained = True
+        for d in range(3):
+            force[i, d] += m * gravity[d]
+            f = force[i, d]
+            v = vel[i, d]
+            if constrained and (blocked[i, d] or prescribed[i, d]):
                 v_new = prescribed_velocity[i, d] if prescribed[i, d] else v
+                v_mid = 0.5 * (v + v_new)
+                reaction = (v_new - v) * m / dt - f
+                boundary += reaction * v_mid * dt
+            else:
+                f_damp = -viscous_damping * m * v
+                if local_damping > 0.0 and v != 0.0:
+                    f_damp -= local_damping * abs(f) * np.sign(v)
+                v_new = v + dt * (f + f_damp) * inv
+                v_mid = 0.5 * (v + v_new)
+                damping -= f_damp * v_mid * dt
+            ke_t += 0.5 * m * v_mid * v_mid
+            potential -= m * gravity[d] * pos[i, d]
+            accel[i, d] = (v_new - v) / dt
+            vel[i, d] = v_new
+            pos[i, d] += dt * v_new
+        weight = inertia[i]
+        inv = 1.0 / weight
+        for d in range(3):
+            f = torque[i, d]
+            v = angvel[i, d]
+            if constrained and (blocked[i, d + 3] or prescribed[i, d + 3]):
+                v_new = prescribed_velocity[i, d + 3] if prescribed[i, d + 3] else v
                 v_mid = 0.5 * (v + v_new)
                 reaction = (v_new - v) * weight / dt - f
                 boundary += reaction * v_mid * dt
@@ -370,15 +412,8 @@ def _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_dampi
                 v_new = v + dt * (f + f_damp) * inv
                 v_mid = 0.5 * (v + v_new)
                 damping -= f_damp * v_mid * dt
-            if d < 3:
-                ke_t += 0.5 * m * v_mid * v_mid
-                potential -= m * gravity[d] * pos[i, d]
-                accel[i, d] = (v_new - v) / dt
-                vel[i, d] = v_new
-                pos[i, d] += dt * v_new
-            else:
-                ke_r += 0.5 * weight * v_mid * v_mid
-                angvel[i, d - 3] = v_new
+            ke_r += 0.5 * weight * v_mid * v_mid
+            angvel[i, d] = v_new
         d2 = ((pos[i, 0] - ref_pos[i, 0]) ** 2 + (pos[i, 1] - ref_pos[i, 1]) ** 2
               + (pos[i, 2] - ref_pos[i, 2]) ** 2)
         d2max = max(d2max, d2)
@@ -434,10 +469,10 @@ def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
 
 
 @njit(parallel=True, cache=True)
-def advance(nsteps, integrate, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
             prescribed_velocity, force, torque, young, pair_params,
-            perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross, pair_overlap,
+            perm, i_start, pair_js, j_start, j_pairs, history, pair_out,
             wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
             ref_pos, ref_wall_point, skin, books, clock, e_out):
     """Up to ``nsteps`` steps (``integrate`` True) or, with ``integrate`` False, only the
@@ -456,23 +491,29 @@ def advance(nsteps, integrate, law, dt, gravity, local_damping, viscous_damping,
     n_walls = wall_point.shape[0]
     dw2 = 0.0
     rebuild = False
+    pe = np.empty(N_E1)
+    we = np.empty(6)
+    ie = np.empty(5)
     for it in range(nsteps):
         for b in prange(nb):
             _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                        perm, i_start, pair_j, history, pair_force, pair_cross, pair_overlap, e1)
+                        perm, i_start, pair_js, history, pair_out, force, torque, e1)
         for b in prange(nb):
-            _particle_block(b, integrate, law, dt, gravity, local_damping, viscous_damping, n_owned,
+            _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                             prescribed_velocity, force, torque, young, pair_params,
-                            perm, i_start, pair_j, j_start, j_pairs, history, pair_force, pair_cross,
-                            pair_overlap, wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx,
+                            perm, i_start, pair_js, j_start, j_pairs, history, pair_out,
+                            wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx,
                             w_hist, w_fn, w_force, ref_pos, e2, dmax)
-        pe = np.zeros(N_E1)
+        for k in range(N_E1):
+            pe[k] = 0.0
+        for k in range(6):
+            we[k] = 0.0
+        for k in range(5):
+            ie[k] = 0.0
         for b in range(nb):
             for k in range(N_E1):
                 pe[k] += e1[b, k]
-        we = np.zeros(6)
-        ie = np.zeros(5)
         for b in range(nb):
             for k in range(6):
                 we[k] += e2[b, k]

@@ -322,7 +322,7 @@ class NeighborList:
         self.perm_step = 0
         self.iperm = np.empty(0, np.int32)
         self.i_start = np.zeros(1, np.int64)
-        self.pair_j = np.empty(0, np.int32)
+        self.pair_js = np.empty(0, np.int32)
         self.history = np.zeros((0, 6))
         self.j_start = np.zeros(1, np.int64)
         self.j_pairs = np.empty(0, np.int32)
@@ -344,9 +344,17 @@ class NeighborList:
 
     @property
     def pair_i(self):
+        """Lower particle index of each stored pair."""
         if self.perm is None:
             return np.empty(0, np.int32)
         return fused.pair_i_of(self.perm, self.i_start)
+
+    @property
+    def pair_j(self):
+        """Higher particle index of each stored pair (``pair_js`` is its perm position)."""
+        if self.perm is None:
+            return np.empty(0, np.int32)
+        return self.perm[self.pair_js]
 
     def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None):
         if self.ref_pos is None or self.ref_pos.shape[0] != n_active or self.perm is None:
@@ -375,7 +383,7 @@ class NeighborList:
         n = np.int64(n_active)
         old_keys = self.pair_i.astype(np.int64) * n + self.pair_j
         if new_order or self.perm is None or self.perm.size != n_active:
-            self.perm = cell_particles.astype(np.int32)
+            self.perm = fused.morton_order(particle_cell, dims)
             self.iperm = np.empty(n_active, np.int32)
             self.iperm[self.perm] = np.arange(n_active, dtype=np.int32)
         perm = self.perm
@@ -388,9 +396,9 @@ class NeighborList:
         fused.count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
                                   n_active, i_start, pair_j, True)
         self.i_start = i_start
-        self.pair_j = pair_j
+        self.pair_js = self.iperm[pair_j]
         self.history = transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j)
-        self.j_start, self.j_pairs = fused.build_j_side(perm, self.iperm, i_start, pair_j)
+        self.j_start, self.j_pairs = fused.build_j_side(perm, self.iperm, i_start, self.pair_js)
         # plane walls
         nw = np.int64(max(wall_point.shape[0], 1))
         old_keys = self.w_particle.astype(np.int64) * nw + self.w_idx
@@ -422,18 +430,18 @@ class NeighborList:
         return np.repeat(np.arange(counts.size, dtype=np.int64), counts)
 
     def memory_bytes(self):
-        names = ("perm", "iperm", "i_start", "pair_j", "history", "j_start", "j_pairs", "f_start", "f_tri",
+        names = ("perm", "iperm", "i_start", "pair_js", "history", "j_start", "j_pairs", "f_start", "f_tri",
                  "facet_history", "w_start", "w_idx", "w_particle", "w_order", "w_hist", "w_fn", "w_force",
                  "ref_pos")
         return {f"neighbors.{k}": getattr(self, k).nbytes for k in names if getattr(self, k) is not None}
 
-    STATE = ("perm", "i_start", "pair_j", "history", "f_start", "f_tri", "facet_history", "w_start", "w_idx",
+    STATE = ("perm", "i_start", "pair_js", "history", "f_start", "f_tri", "facet_history", "w_start", "w_idx",
              "w_hist", "w_fn", "w_force", "ref_pos", "ref_vertices", "ref_wall_point", "ref_wall_normal")
 
     def state(self):
         """Arrays that make the lists and their history restartable bit-for-bit."""
         out = {} if self.perm is None else {k: getattr(self, k) for k in self.STATE}
-        out.update(pair_i=self.pair_i, skin=np.float64(self.skin), n_builds=np.int64(self.n_builds),
+        out.update(pair_i=self.pair_i, pair_j=self.pair_j, skin=np.float64(self.skin), n_builds=np.int64(self.n_builds),
                    perm_step=np.int64(self.perm_step))
         return out
 
@@ -446,6 +454,6 @@ class NeighborList:
         n = self.perm.size
         self.iperm = np.empty(n, np.int32)
         self.iperm[self.perm] = np.arange(n, dtype=np.int32)
-        self.j_start, self.j_pairs = fused.build_j_side(self.perm, self.iperm, self.i_start, self.pair_j)
+        self.j_start, self.j_pairs = fused.build_j_side(self.perm, self.iperm, self.i_start, self.pair_js)
         self.w_particle = np.repeat(self.perm, np.diff(self.w_start)).astype(np.int32)
         self.w_order = np.argsort(self.w_particle, kind="stable").astype(np.int32)
