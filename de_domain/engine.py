@@ -113,6 +113,10 @@ class Engine:
         """Per-pair results of the last step, in the neighbour list's storage order:
         force on i, n × F (for the torques), overlap."""
         self.pair_out = np.zeros((m, 7))  # one record per pair: force (3), n × F (3), overlap
+        m_f = self.neighbors.f_tri.size
+        self.facet_force = np.zeros((m_f, 3))
+        self.facet_lambda = np.zeros((m_f, 3))
+        self.facet_active = np.zeros(m_f, np.bool_)
 
     @property
     def pair_force(self):
@@ -123,10 +127,6 @@ class Engine:
     def pair_overlap(self):
         """Overlap δ of each listed pair in the last step (≤ 0: not in contact)."""
         return self.pair_out[:, 6]
-        m_f = self.neighbors.f_tri.size
-        self.facet_force = np.zeros((m_f, 3))
-        self.facet_lambda = np.zeros((m_f, 3))
-        self.facet_active = np.zeros(m_f, np.bool_)
 
     def critical_timestep(self):
         """Δt_crit: linear law min √(m_i/k_n,i), k_n,i = 2 E r_i (a sphere against its

@@ -1,14 +1,16 @@
-// Rectangular block Lx x Ly x Lz with one physical group per face.
-// Physical names: volume "solid"; faces "x0", "x1", "y0", "y1", "bottom" (z=0), "top" (z=Lz).
+// Rectangular block Lx x Ly x Lz with its low corner at (x0, y0, z0), one physical group per face.
+// Physical names: volume "solid"; faces "x0", "x1", "y0", "y1", "bottom" (z=z0), "top" (z=z0+Lz).
 SetFactory("OpenCASCADE");
 DefineConstant[ Lx = {1.0, Name "Parameters/Lx"}, Ly = {1.0, Name "Parameters/Ly"},
-                Lz = {1.0, Name "Parameters/Lz"} ];
-Box(1) = {0, 0, 0, Lx, Ly, Lz};
+                Lz = {1.0, Name "Parameters/Lz"}, x0 = {0.0, Name "Parameters/x0"},
+                y0 = {0.0, Name "Parameters/y0"}, z0 = {0.0, Name "Parameters/z0"} ];
+Box(1) = {x0, y0, z0, Lx, Ly, Lz};
 eps = 1e-6;
+x1 = x0 + Lx; y1 = y0 + Ly; z1 = z0 + Lz;
 Physical Volume("solid") = {1};
-Physical Surface("x0") = Surface In BoundingBox{-eps, -eps, -eps, eps, Ly+eps, Lz+eps};
-Physical Surface("x1") = Surface In BoundingBox{Lx-eps, -eps, -eps, Lx+eps, Ly+eps, Lz+eps};
-Physical Surface("y0") = Surface In BoundingBox{-eps, -eps, -eps, Lx+eps, eps, Lz+eps};
-Physical Surface("y1") = Surface In BoundingBox{-eps, Ly-eps, -eps, Lx+eps, Ly+eps, Lz+eps};
-Physical Surface("bottom") = Surface In BoundingBox{-eps, -eps, -eps, Lx+eps, Ly+eps, eps};
-Physical Surface("top") = Surface In BoundingBox{-eps, -eps, Lz-eps, Lx+eps, Ly+eps, Lz+eps};
+Physical Surface("x0") = Surface In BoundingBox{x0-eps, y0-eps, z0-eps, x0+eps, y1+eps, z1+eps};
+Physical Surface("x1") = Surface In BoundingBox{x1-eps, y0-eps, z0-eps, x1+eps, y1+eps, z1+eps};
+Physical Surface("y0") = Surface In BoundingBox{x0-eps, y0-eps, z0-eps, x1+eps, y0+eps, z1+eps};
+Physical Surface("y1") = Surface In BoundingBox{x0-eps, y1-eps, z0-eps, x1+eps, y1+eps, z1+eps};
+Physical Surface("bottom") = Surface In BoundingBox{x0-eps, y0-eps, z0-eps, x1+eps, y1+eps, z0+eps};
+Physical Surface("top") = Surface In BoundingBox{x0-eps, y0-eps, z1-eps, x1+eps, y1+eps, z1+eps};

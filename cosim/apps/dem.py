@@ -126,6 +126,9 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     progress.update(engine.step_count, engine.time, force=True)
     _checkpoint(engine, checkpoint)
     series.close()
+    from de_domain.packing import save_packing
+    p = engine.particles
+    save_packing(out_dir / "final_packing.npz", p.pos[:p.n_owned], p.radius[:p.n_owned], time=engine.time)
     from cosim.plots import plot_panels
     plot_panels(out_dir / "series.csv", "time", [
         ("kinetic energy [J]", ["kinetic"], True),

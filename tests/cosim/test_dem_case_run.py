@@ -53,6 +53,9 @@ def test_run_writes_series_frames_and_provenance(tmp_path):
     times = [float(r["time"]) for r in series]
     assert times == sorted(times) and times[0] == 0.0
     assert (out / "series.png").stat().st_size > 10_000
+    from de_domain.packing import load_packing
+    positions, radii = load_packing(out / "final_packing.npz")   # reusable as a case's packing file
+    assert positions.shape == (300, 3) and np.all(radii >= 0.0008)
     # ParaView: a valid PVD whose frames exist
     datasets = ET.parse(out / "particles.pvd").getroot().iter("DataSet")
     files = [out / d.get("file") for d in datasets]
