@@ -57,5 +57,19 @@ bench: setup
 	$(PY) benchmarks/dem_throughput.py
 	$(PY) benchmarks/fe_throughput.py
 
+# DEM peers side by side (W1 bed): installs the Debian liggghts and yade packages
+# here only (never in setup/test).
+bench-peers: setup
+	@missing=""; for p in liggghts yade; do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "bench-peers: installing Debian packages:$$missing"; \
+	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
+	  $$SUDO apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+	$(PY) benchmarks/compare_peers.py
+
 clean:
 	rm -rf $(VENV) runs/out .pytest_cache

@@ -45,9 +45,13 @@ notice when a *called* kernel in another module changes, so after editing e.g.
 the old code). Results are bit-identical for any Numba thread count and any Verlet
 rebuild frequency (fixed-order reductions, canonically sorted neighbour lists).
 """
-from .engine import Engine
-from .materials import Material
-from .particles import Particles
-from .walls import FacetMesh, PlaneWall
+from . import threading as _threading
+
+_threading.configure()  # before the first parallel launch (see de_domain/threading.py)
+
+from .engine import Engine  # noqa: E402
+from .materials import Material  # noqa: E402
+from .particles import Particles  # noqa: E402
+from .walls import FacetMesh, PlaneWall  # noqa: E402
 
 __all__ = ["Engine", "FacetMesh", "Material", "Particles", "PlaneWall"]

@@ -113,6 +113,7 @@ class Engine:
         """Per-pair results of the last step, in the neighbour list's storage order:
         force on i, n × F (for the torques), overlap."""
         self.pair_out = np.zeros((m, 7))  # one record per pair: force (3), n × F (3), overlap
+        self.pair_out[:, 6] = np.nan  # overlap of the previous step unknown (see fused._pair_block)
         m_f = self.neighbors.f_tri.size
         self.facet_force = np.zeros((m_f, 3))
         self.facet_lambda = np.zeros((m_f, 3))

@@ -173,7 +173,8 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
                 perm, i_start, pair_js, history, pair_out, force, torque, e1):
     """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK).
 
-    ``pair_out[p]`` = force on i (3), n × F (3), overlap. The i-side part of each
+    ``pair_out[p]`` = force on i (3), n × F (3), overlap (NaN right after a rebuild:
+    unknown). The i-side part of each
     particle's force/torque sum (ascending j) is written to ``force``/``torque``;
     region 2 continues it with the j-side pairs."""
     n = perm.size
@@ -196,8 +197,11 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             dist = np.sqrt(dx * dx + dy * dy + dz * dz)
             rj = radius[j]
             overlap = ri + rj - dist
+            previous = pair_out[p, 6]
             pair_out[p, 6] = overlap
             if overlap <= 0.0:
+                if previous <= 0.0:  # open last step too: history and pair_out[p, :6] are already zero
+                    continue
                 if (history[p, 0] != 0.0 or history[p, 1] != 0.0 or history[p, 2] != 0.0
                         or history[p, 3] != 0.0 or history[p, 4] != 0.0 or history[p, 5] != 0.0):
                     params = pair_params[mi, material[j]]
