@@ -82,6 +82,7 @@ class Engine:
         if skin is None:
             skin = 0.2 * float(np.mean(particles.radius)) if particles.n else 0.0
         self.neighbors = NeighborList(skin)
+        self.neighbors.rolling = bool(np.any(self.pair_params[:, :, PAIR_ROLLING_STIFFNESS] > 0.0))
         self.time = 0.0
         self.step_count = 0
         self._setup_facet_topology()
@@ -112,8 +113,8 @@ class Engine:
     def _allocate_pair_arrays(self, m):
         """Per-pair results of the last step, in the neighbour list's storage order:
         force on i, n × F (for the torques), overlap."""
-        self.pair_out = np.zeros((m, 7))  # one record per pair: force (3), n × F (3), overlap
-        self.pair_out[:, 6] = np.nan  # overlap of the previous step unknown (see fused._pair_block)
+        self.pair_fc = np.zeros((m, 6))  # one record per pair: force on i (3), n × F (3)
+        self.pair_ov = np.full(m, np.nan)  # overlap; NaN: previous step unknown (see fused._pair_block)
         m_f = self.neighbors.f_tri.size
         self.facet_force = np.zeros((m_f, 3))
         self.facet_lambda = np.zeros((m_f, 3))
@@ -122,12 +123,12 @@ class Engine:
     @property
     def pair_force(self):
         """Force on i of each listed pair in the last step (zero when not in contact)."""
-        return self.pair_out[:, 0:3]
+        return self.pair_fc[:, 0:3]
 
     @property
     def pair_overlap(self):
         """Overlap δ of each listed pair in the last step (≤ 0: not in contact)."""
-        return self.pair_out[:, 6]
+        return self.pair_ov
 
     def critical_timestep(self):
         """Δt_crit: linear law min √(m_i/k_n,i), k_n,i = 2 E r_i (a sphere against its
@@ -191,10 +192,10 @@ class Engine:
             ref_pos = nl.ref_pos
         else:
             perm, arrays, ref_pos = sorted_copies
-        rolling = bool(np.any(self.pair_params[:, :, PAIR_ROLLING_STIFFNESS] > 0.0))
+        rolling = nl.rolling
         return ((has_constraints, rolling, self.law, self.dt, self.gravity, self.local_damping, self.viscous_damping,
                  p.n_owned) + arrays + (self.young, self.pair_params, perm, nl.i_start, nl.pair_js, nl.j_start,
-                                        nl.j_pairs, nl.history, self.pair_out,
+                                        nl.j_pairs, nl.ht, nl.hr, self.pair_fc, self.pair_ov,
                                         wall_point, wall_normal, wall_vel, wall_mat, nl.w_start, nl.w_idx, nl.w_hist,
                                         nl.w_fn, nl.w_force, ref_pos, nl.ref_wall_point, nl.skin))
 
@@ -375,7 +376,7 @@ class Engine:
         """nbytes of every per-particle and per-contact array the engine holds, by name."""
         out = {f"particles.{k}": v.nbytes for k, v in self.particles.arrays().items()}
         out["acceleration"] = self.acceleration.nbytes
-        for k in ("pair_out", "facet_force", "facet_lambda", "facet_active"):
+        for k in ("pair_fc", "pair_ov", "facet_force", "facet_lambda", "facet_active"):
             out[k] = getattr(self, k).nbytes
         out.update(self.neighbors.memory_bytes())
         p = self.particles
@@ -449,7 +450,7 @@ class Engine:
                 data[f"facet{k}_source_nodes"] = mesh.source_nodes
         for k, v in self.neighbors.state().items():
             data[f"nl_{k}"] = v
-        for name in ("pair_out", "facet_force", "facet_lambda", "gravity", "acceleration"):
+        for name in ("pair_fc", "pair_ov", "facet_force", "facet_lambda", "gravity", "acceleration"):
             data[name] = getattr(self, name)
         data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
                                    self.time])
@@ -492,7 +493,7 @@ class Engine:
         if "nl_perm" in d:
             engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
         engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)
-        for name in ("pair_out", "facet_force", "facet_lambda", "acceleration"):
+        for name in ("pair_fc", "pair_ov", "facet_force", "facet_lambda", "acceleration"):
             setattr(engine, name, d[name].copy())
         engine.time = float(time)
         engine.step_count = int(d["step_count"])

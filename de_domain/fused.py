@@ -170,13 +170,15 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
 # --------------------------------------------------------------------------- stepping
 @njit(cache=True)
 def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                perm, i_start, pair_js, history, pair_out, force, torque, e1):
+                perm, i_start, pair_js, ht, hr, rolling, pair_fc, pair_ov, force, torque, e1):
     """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK).
 
-    ``pair_out[p]`` = force on i (3), n × F (3), overlap (NaN right after a rebuild:
-    unknown). The i-side part of each
-    particle's force/torque sum (ascending j) is written to ``force``/``torque``;
-    region 2 continues it with the j-side pairs."""
+    ``pair_fc[p]`` = force on i (3), n × F (3); ``pair_ov[p]`` = overlap (NaN right
+    after a rebuild: unknown). History: tangential spring ``ht[p]``; rolling moment
+    ``hr[p]`` only if ``rolling`` (any pair with β_r > 0; else it is identically
+    zero and not stored). The i-side part of each particle's force/torque sum
+    (ascending j) is written to ``force``/``torque``; region 2 continues it with the
+    j-side pairs."""
     n = perm.size
     en = 0.0
     et = 0.0
@@ -197,22 +199,27 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             dist = np.sqrt(dx * dx + dy * dy + dz * dz)
             rj = radius[j]
             overlap = ri + rj - dist
-            previous = pair_out[p, 6]
-            pair_out[p, 6] = overlap
+            previous = pair_ov[p]
+            pair_ov[p] = overlap
             if overlap <= 0.0:
                 if previous <= 0.0:  # open last step too: history and pair_out[p, :6] are already zero
                     continue
-                if (history[p, 0] != 0.0 or history[p, 1] != 0.0 or history[p, 2] != 0.0
-                        or history[p, 3] != 0.0 or history[p, 4] != 0.0 or history[p, 5] != 0.0):
+                mrx = 0.0; mry = 0.0; mrz = 0.0
+                if rolling:
+                    mrx = hr[p, 0]; mry = hr[p, 1]; mrz = hr[p, 2]
+                if (ht[p, 0] != 0.0 or ht[p, 1] != 0.0 or ht[p, 2] != 0.0
+                        or mrx != 0.0 or mry != 0.0 or mrz != 0.0):
                     params = pair_params[mi, material[j]]
                     k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
                     r_red = ri * rj / (ri + rj)
-                    fr += released_energy(law, params, k_lin, r_red, r_red, history[p, 0], history[p, 1],
-                                          history[p, 2], history[p, 3], history[p, 4], history[p, 5])
-                    for k in range(6):
-                        history[p, k] = 0.0
+                    fr += released_energy(law, params, k_lin, r_red, r_red, ht[p, 0], ht[p, 1],
+                                          ht[p, 2], mrx, mry, mrz)
+                    for k in range(3):
+                        ht[p, k] = 0.0
+                        if rolling:
+                            hr[p, k] = 0.0
                 for k in range(6):
-                    pair_out[p, k] = 0.0
+                    pair_fc[p, k] = 0.0
                 continue
             nx = dx / dist
             ny = dy / dist
@@ -231,23 +238,27 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
             dvn = 0.5 * dt * ((accel[j, 0] - accel[i, 0]) * nx + (accel[j, 1] - accel[i, 1]) * ny
                               + (accel[j, 2] - accel[i, 2]) * nz)
+            mrx = 0.0; mry = 0.0; mrz = 0.0
+            if rolling:
+                mrx = hr[p, 0]; mry = hr[p, 1]; mrz = hr[p, 2]
             res = contact_force(law, params, nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz, dvn,
                                 angvel[j, 0] - angvel[i, 0], angvel[j, 1] - angvel[i, 1],
                                 angvel[j, 2] - angvel[i, 2], k_lin, r_red, r_red, m_eff,
-                                history[p, 0], history[p, 1], history[p, 2], history[p, 3], history[p, 4],
-                                history[p, 5], dt)
+                                ht[p, 0], ht[p, 1], ht[p, 2], mrx, mry, mrz, dt)
             fx, fy, fz = res[0], res[1], res[2]
-            for k in range(6):
-                history[p, k] = res[3 + k]
+            for k in range(3):
+                ht[p, k] = res[3 + k]
+                if rolling:
+                    hr[p, k] = res[6 + k]
             cx = ny * fz - nz * fy
             cy = nz * fx - nx * fz
             cz = nx * fy - ny * fx
-            pair_out[p, 0] = fx
-            pair_out[p, 1] = fy
-            pair_out[p, 2] = fz
-            pair_out[p, 3] = cx
-            pair_out[p, 4] = cy
-            pair_out[p, 5] = cz
+            pair_fc[p, 0] = fx
+            pair_fc[p, 1] = fy
+            pair_fc[p, 2] = fz
+            pair_fc[p, 3] = cx
+            pair_fc[p, 4] = cy
+            pair_fc[p, 5] = cz
             sfx += fx; sfy += fy; sfz += fz
             stx += ai * cx + res[6]
             sty += ai * cy + res[7]
@@ -267,7 +278,7 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
 
 
 @njit(cache=True)
-def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, history, pair_out, force, torque):
+def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov, force, torque):
     """Continue the i-side sums of region 1 with the j-side pairs (ascending i): −F and
     (a_j n) × F − M_r with a_j = r_j − δ/2, as the pair kernel's torques. Without
     rolling resistance M_r ≡ +0.0 and is not read (x − 0.0 = x exactly)."""
@@ -276,19 +287,19 @@ def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, history, pair_out, f
     ri = radius[i]
     for q in range(j_start[s], j_start[s + 1]):
         p = j_pairs[q]
-        ov = pair_out[p, 6]
+        ov = pair_ov[p]
         if ov <= 0.0:
             continue
         aj = ri - 0.5 * ov
-        fx -= pair_out[p, 0]; fy -= pair_out[p, 1]; fz -= pair_out[p, 2]
+        fx -= pair_fc[p, 0]; fy -= pair_fc[p, 1]; fz -= pair_fc[p, 2]
         if rolling:
-            tx += aj * pair_out[p, 3] - history[p, 3]
-            ty += aj * pair_out[p, 4] - history[p, 4]
-            tz += aj * pair_out[p, 5] - history[p, 5]
+            tx += aj * pair_fc[p, 3] - hr[p, 0]
+            ty += aj * pair_fc[p, 4] - hr[p, 1]
+            tz += aj * pair_fc[p, 5] - hr[p, 2]
         else:
-            tx += aj * pair_out[p, 3]
-            ty += aj * pair_out[p, 4]
-            tz += aj * pair_out[p, 5]
+            tx += aj * pair_fc[p, 3]
+            ty += aj * pair_fc[p, 4]
+            tz += aj * pair_fc[p, 5]
     return fx, fy, fz, tx, ty, tz
 
 
@@ -296,7 +307,7 @@ def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, history, pair_out, f
 def _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
-                    perm, i_start, pair_js, j_start, j_pairs, history, pair_out,
+                    perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
                     wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
                     ref_pos, e2, dmax):
     """Region 2 work item: gather, plane walls, then (if ``integrate``) gravity, damping
@@ -313,7 +324,7 @@ def _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, lo
         i = perm[s]
         if i >= n_owned:
             continue
-        fx, fy, fz, tx, ty, tz = _gather_j_side(s, i, rolling, radius, j_start, j_pairs, history, pair_out,
+        fx, fy, fz, tx, ty, tz = _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov,
                                                 force, torque)
         r = radius[i]
         # plane walls (DESIGN.md §2 with the wall as body j; as walls.plane_wall_contacts)
@@ -418,8 +429,10 @@ def _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, lo
                 damping -= f_damp * v_mid * dt
             ke_r += 0.5 * weight * v_mid * v_mid
             angvel[i, d] = v_new
-        d2 = ((pos[i, 0] - ref_pos[i, 0]) ** 2 + (pos[i, 1] - ref_pos[i, 1]) ** 2
-              + (pos[i, 2] - ref_pos[i, 2]) ** 2)
+        ex = pos[i, 0] - ref_pos[i, 0]
+        ey = pos[i, 1] - ref_pos[i, 1]
+        ez = pos[i, 2] - ref_pos[i, 2]
+        d2 = ex * ex + ey * ey + ez * ez
         d2max = max(d2max, d2)
     for k in range(6):
         e2[b, k] = we[k]
@@ -476,7 +489,7 @@ def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
 def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
             prescribed_velocity, force, torque, young, pair_params,
-            perm, i_start, pair_js, j_start, j_pairs, history, pair_out,
+            perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
             wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
             ref_pos, ref_wall_point, skin, books, clock, e_out):
     """Up to ``nsteps`` steps (``integrate`` True) or, with ``integrate`` False, only the
@@ -501,12 +514,12 @@ def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local
     for it in range(nsteps):
         for b in prange(nb):
             _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                        perm, i_start, pair_js, history, pair_out, force, torque, e1)
+                        perm, i_start, pair_js, ht, hr, rolling, pair_fc, pair_ov, force, torque, e1)
         for b in prange(nb):
             _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                             prescribed_velocity, force, torque, young, pair_params,
-                            perm, i_start, pair_js, j_start, j_pairs, history, pair_out,
+                            perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
                             wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx,
                             w_hist, w_fn, w_force, ref_pos, e2, dmax)
         for k in range(N_E1):
@@ -539,7 +552,7 @@ def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local
                 wall_point[w, d] = wall_point[w, d] + wall_vel[w, d] * dt
             dd = 0.0
             for d in range(3):
-                dd += (wall_point[w, d] - ref_wall_point[w, d]) ** 2
+                dd += (wall_point[w, d] - ref_wall_point[w, d]) * (wall_point[w, d] - ref_wall_point[w, d])
             dw2 = max(dw2, dd)
         clock[0] += dt
         clock[1] += 1.0

@@ -323,7 +323,9 @@ class NeighborList:
         self.iperm = np.empty(0, np.int32)
         self.i_start = np.zeros(1, np.int64)
         self.pair_js = np.empty(0, np.int32)
-        self.history = np.zeros((0, 6))
+        self.rolling = False  # store the rolling moments (set by the engine: any pair with β_r > 0)
+        self.ht = np.zeros((0, 3))
+        self.hr = np.zeros((0, 3))
         self.j_start = np.zeros(1, np.int64)
         self.j_pairs = np.empty(0, np.int32)
         self.f_start = np.zeros(1, np.int64)
@@ -348,6 +350,19 @@ class NeighborList:
         if self.perm is None:
             return np.empty(0, np.int32)
         return fused.pair_i_of(self.perm, self.i_start)
+
+    @property
+    def history(self):
+        """(m, 6) copy: tangential spring force (3), rolling moment (3; zero without rolling)."""
+        out = np.zeros((self.ht.shape[0], 6))
+        out[:, :3] = self.ht
+        if self.rolling:
+            out[:, 3:] = self.hr
+        return out
+
+    def _set_history(self, history):
+        self.ht = np.ascontiguousarray(history[:, :3])
+        self.hr = np.ascontiguousarray(history[:, 3:]) if self.rolling else np.zeros((0, 3))
 
     @property
     def pair_j(self):
@@ -397,7 +412,7 @@ class NeighborList:
                                   n_active, i_start, pair_j, True)
         self.i_start = i_start
         self.pair_js = self.iperm[pair_j]
-        self.history = transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j)
+        self._set_history(transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j))
         self.j_start, self.j_pairs = fused.build_j_side(perm, self.iperm, i_start, self.pair_js)
         # plane walls
         nw = np.int64(max(wall_point.shape[0], 1))
@@ -430,17 +445,19 @@ class NeighborList:
         return np.repeat(np.arange(counts.size, dtype=np.int64), counts)
 
     def memory_bytes(self):
-        names = ("perm", "iperm", "i_start", "pair_js", "history", "j_start", "j_pairs", "f_start", "f_tri",
+        names = ("perm", "iperm", "i_start", "pair_js", "ht", "hr", "j_start", "j_pairs", "f_start", "f_tri",
                  "facet_history", "w_start", "w_idx", "w_particle", "w_order", "w_hist", "w_fn", "w_force",
                  "ref_pos")
         return {f"neighbors.{k}": getattr(self, k).nbytes for k in names if getattr(self, k) is not None}
 
-    STATE = ("perm", "i_start", "pair_js", "history", "f_start", "f_tri", "facet_history", "w_start", "w_idx",
+    STATE = ("perm", "i_start", "pair_js", "f_start", "f_tri", "facet_history", "w_start", "w_idx",
              "w_hist", "w_fn", "w_force", "ref_pos", "ref_vertices", "ref_wall_point", "ref_wall_normal")
 
     def state(self):
         """Arrays that make the lists and their history restartable bit-for-bit."""
         out = {} if self.perm is None else {k: getattr(self, k) for k in self.STATE}
+        if self.perm is not None:
+            out["history"] = self.history
         out.update(pair_i=self.pair_i, pair_j=self.pair_j, skin=np.float64(self.skin), n_builds=np.int64(self.n_builds),
                    perm_step=np.int64(self.perm_step))
         return out
@@ -451,6 +468,7 @@ class NeighborList:
         self.perm_step = int(state["perm_step"])
         for k in self.STATE:
             setattr(self, k, state[k].copy())
+        self._set_history(state["history"])
         n = self.perm.size
         self.iperm = np.empty(n, np.int32)
         self.iperm[self.perm] = np.arange(n, dtype=np.int32)
