@@ -31,6 +31,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+BASE_ENV = dict(os.environ)  # the peers get the environment as it was, without de_domain's threading defaults
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import dem_throughput as ours  # noqa: E402
 
@@ -38,8 +39,8 @@ W1 = ours.W1
 STEPS = 2000
 BOX = {5000: 0.038, 20000: 0.076}
 SEED = 86028121
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1")
+ENV = dict(BASE_ENV, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+           OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
 def liggghts(workdir, n, ranks):
@@ -48,7 +49,8 @@ def liggghts(workdir, n, ranks):
            "-var", "seed", str(SEED), "-in", "in.bed", "-log", f"log.{n}.{ranks}"]
     if ranks > 1:
         cmd = ["mpirun", "--allow-run-as-root", "-np", str(ranks)] + cmd
-    subprocess.run(cmd, cwd=workdir, env=ENV, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    subprocess.run(cmd, cwd=workdir, env=dict(ENV, OMP_NUM_THREADS="1"), check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.STDOUT)
     loops = re.findall(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps",
                        (Path(workdir) / f"log.{n}.{ranks}").read_text())
     seconds, steps = loops[-1]

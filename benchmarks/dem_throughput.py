@@ -18,7 +18,9 @@ Per (N, threads): one untimed step (neighbour build, JIT if not yet done), then
 time). "JIT" is the time of the very first step of a throw-away 5k engine in this
 process (Numba compilation, or loading the on-disk cache), excluded from the rates.
 Memory per particle: ``Engine.memory_bytes()`` (nbytes of every per-particle and
-per-contact array the engine holds) / N. Threading: see ``de_domain.threading``.
+per-contact array the engine holds, including the spatially sorted copies a run
+works on) / N. Threading: ``de_domain.threading`` (set on import, before Numba
+starts its threads; the line above the table says what is in use).
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ import numpy as np
 
 W1 = Path(__file__).resolve().parents[2] / "shared" / "benchmarks" / "w1"
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import de_domain  # noqa: E402,F401  (sets the threading defaults before Numba launches threads)
 
 STEPS = 2000
 DT = 2e-6

@@ -3,12 +3,12 @@
 * Threading layer: ``omp`` (GNU libgomp) when Numba has it, else Numba's own
   ``workqueue``. Debian's numba 0.56 ships no ``tbbpool`` (installing python3-tbb
   does not add one), so ``tbb`` is not an option here.
-* libgomp waiting: ``GOMP_SPINCOUNT`` (how long an idle worker spins before it
-  sleeps on a futex) defaults to ``SPINCOUNT`` below. A step has two parallel
-  regions a few µs apart, so a short spin bridges the serial gap between them;
-  the libgomp default (300,000 spins, or endless with OMP_WAIT_POLICY=ACTIVE)
-  burns a core that a loaded 2-core machine needs: measured 20-100x slowdowns of a
-  2-thread run on a machine with load average 5.
+* libgomp waiting: ``OMP_WAIT_POLICY=PASSIVE`` (an idle worker sleeps on a futex
+  at once). Spinning (the libgomp default: 300,000 spins before sleeping, or
+  endless with ACTIVE; even GOMP_SPINCOUNT=10000) burns a core that a shared
+  2-core machine needs: at load average 5, 2-thread runs of the W1 bed were 3-20x
+  slower with spinning than with PASSIVE; PASSIVE was on par with Numba's
+  ``workqueue`` layer.
 * No thread pinning is set: on a shared 2-core machine pinning stops the kernel
   from moving a thread to the core that is free.
 
@@ -20,22 +20,23 @@ from ``de_domain/__init__.py``).
 """
 import os
 
-SPINCOUNT = "10000"
+WAIT_POLICY = "PASSIVE"
 _configured = {}
 
 
 def configure():
+    import importlib.util
+
     import numba
 
+    # libgomp reads its variables when it is loaded: set them first, and only look
+    # for (never import) Numba's omppool here.
+    if "GOMP_SPINCOUNT" not in os.environ:
+        os.environ.setdefault("OMP_WAIT_POLICY", WAIT_POLICY)
     if "NUMBA_THREADING_LAYER" not in os.environ:
-        try:
-            from numba.np.ufunc import omppool  # noqa: F401
-            numba.config.THREADING_LAYER = "omp"
-        except ImportError:
-            numba.config.THREADING_LAYER = "workqueue"
-    if "OMP_WAIT_POLICY" not in os.environ:
-        os.environ.setdefault("GOMP_SPINCOUNT", SPINCOUNT)
-    _configured.update(layer=numba.config.THREADING_LAYER, spincount=os.environ.get("GOMP_SPINCOUNT"))
+        has_omp = importlib.util.find_spec("numba.np.ufunc.omppool") is not None
+        numba.config.THREADING_LAYER = "omp" if has_omp else "workqueue"
+    _configured.update(layer=numba.config.THREADING_LAYER, wait_policy=os.environ.get("OMP_WAIT_POLICY"))
 
 
 def describe():
