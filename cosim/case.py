@@ -20,7 +20,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from cosim.errors import CaseError
 
@@ -187,7 +187,12 @@ class FeSection(_Section):
 
 
 class CouplingSection(_Section):
-    interface: str = Field(min_length=1, description="facet physical group of the FE mesh that the particles touch")
+    interface: list[str] = Field(min_length=1, description="facet physical groups of the FE mesh that the particles touch (a name or a list)")
+
+    @field_validator("interface", mode="before")
+    @classmethod
+    def _one_name_is_a_list(cls, value):
+        return [value] if isinstance(value, str) else value
     material: str = Field(min_length=1, description="DEM material name of the interface facets")
     subcycles: Optional[int] = Field(default=None, ge=1, description="DEM steps per FE step [-]; default the largest the FE stability allows")
 
@@ -345,9 +350,9 @@ def _check_coupling(path, case):
         raise CaseError(path, "coupling.material", case.coupling.material, f"must be one of the materials: {names}")
     mesh = mesh_path(path, case.fe.mesh)
     surfaces = sorted(n for n, d in physical_groups(mesh).items() if d == 2)
-    if case.coupling.interface not in surfaces:
-        raise CaseError(path, "coupling.interface", case.coupling.interface,
-                        f"not a surface physical group of {mesh.name}; available: {surfaces}")
+    for i, name in enumerate(case.coupling.interface):
+        if name not in surfaces:
+            raise CaseError(path, f"coupling.interface[{i}]", name, f"not a surface physical group of {mesh.name}; available: {surfaces}")
 
 
 def mesh_path(case_file, name):

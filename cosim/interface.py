@@ -13,20 +13,22 @@ import numpy as np
 
 
 class Interface:
-    """Gather/scatter between ``ExplicitSolid`` boundary ``name`` and a DEM ``FacetMesh``.
+    """Gather/scatter between the ``ExplicitSolid`` boundary groups ``names`` and a DEM ``FacetMesh``.
 
     ``facets`` (rank 0 only) is the DEM facet mesh; its vertex k is the FE node with
     global index ``global_nodes[k]``. Collective construction.
     """
 
-    def __init__(self, solid, name, material=0):
+    def __init__(self, solid, names, material=0):
         from de_domain import FacetMesh
 
+        names = [names] if isinstance(names, str) else list(names)
+        name = "+".join(names)
         self.solid, self.comm = solid, solid.comm
-        nodes = solid.boundary_nodes(name)
+        nodes = np.unique(np.concatenate([solid.boundary_nodes(n) for n in names]))
         self.owned_nodes = nodes[nodes < solid.n_owned_nodes]           # this rank's interface nodes
         owned_global = solid.global_node_index[self.owned_nodes]
-        triangles = solid.global_node_index[solid.facet_triangles(name)]
+        triangles = solid.global_node_index[np.concatenate([solid.facet_triangles(n) for n in names])]
         all_owned = self.comm.gather(owned_global, root=0)
         all_triangles = self.comm.gather(triangles, root=0)
         self.facets = None

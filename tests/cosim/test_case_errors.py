@@ -199,3 +199,18 @@ def test_fe_poisson_ratio_range(tmp_path, fe_base):
 def test_fe_alpha_tau_above_the_stability_bound(tmp_path, fe_base):
     fe_base["fe"]["alpha_tau"] = 1.0
     expect_error(tmp_path, fe_base, "fe.alpha_tau", "1.0", "step 3 is unstable above alpha_tau = 0.277 for nu = 0.3")
+
+
+COUPLED = Path(__file__).parents[2] / "runs" / "coupled_footing_on_sand.toml"
+
+
+def test_coupled_flagship_case_is_valid():
+    case, _ = load_case(COUPLED)
+    assert case.coupling.interface == ["bottom", "x0", "x1", "y0", "y1"]
+
+
+def test_coupled_unknown_interface_group(tmp_path):
+    data = tomllib.loads(COUPLED.read_text())
+    data["dem"]["particles"]["file"] = str(COUPLED.parent / data["dem"]["particles"]["file"])
+    data["coupling"]["interface"] = ["bottom", "sides"]
+    expect_error(tmp_path, data, "coupling.interface[1]", "'sides'", "not a surface physical group of block.geo")

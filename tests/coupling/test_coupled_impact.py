@@ -86,7 +86,8 @@ def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
     s1, out1 = run(case, tmp_path / "n1", "--set", "coupling.subcycles=1")
     s4, out4 = run(case, tmp_path / "n4", "--set", "coupling.subcycles=4")
     assert "(1 DEM steps per FE step)" in out1 and "(4 DEM steps per FE step)" in out4
-    assert s1["time"][-1] == pytest.approx(s4["time"][-1], rel=1e-12)
-    # same physics, FE step 4x larger: transferred momentum and plate motion within 1 %
-    assert s4["momentum_fe_z"][-1] == pytest.approx(s1["momentum_fe_z"][-1], rel=1e-2)
-    assert s4["interface_displacement_z"][-1] == pytest.approx(s1["interface_displacement_z"][-1], rel=1e-2)
+    # same physics, FE step 4x larger: transferred momentum and plate motion within 1 %,
+    # compared at the end time both runs reached (their output instants differ by < 1 FE step)
+    t_end = min(s1["time"][-1], s4["time"][-1])
+    for key in ("momentum_fe_z", "interface_displacement_z"):
+        assert np.interp(t_end, s4["time"], s4[key]) == pytest.approx(np.interp(t_end, s1["time"], s1[key]), rel=1e-2), key
