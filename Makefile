@@ -16,7 +16,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN       := mpirun --oversubscribe
-DEMO_CASE    ?= runs/demo_dem_settling.toml
+DEMO_CASE    ?= runs/coupled_footing_on_sand.toml
 
 .PHONY: setup demo test test-slow bench bench-peers clean
 
