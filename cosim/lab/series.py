@@ -6,7 +6,8 @@ Each case file is one specimen (e.g. dense and loose); the specimen is generated
 per case and reused at every stress, as identical specimens are in the laboratory.
 Outputs under ``OUT/``: ``<case>/specimen.npz``, ``<case>/<σ>kPa/`` (a full run each),
 ``mohr_coulomb.csv`` and ``.md`` (the table of φ and c), ``mohr_coulomb.png`` and
-``series_curves.png``.
+``series_curves.png``. Runs that finished with the same resolved case are reused, so
+an interrupted series continues where it stopped (delete a folder to redo it).
 """
 from __future__ import annotations
 
@@ -16,6 +17,17 @@ import time
 from pathlib import Path
 
 from cosim.outputs import atomic_write_text, say
+
+
+def _done(out_dir, resolved):
+    """A run finished earlier with the same resolved case (an interrupted series resumes)."""
+    import tomllib
+    from cosim.outputs import _drop_none
+    try:
+        return (out_dir / "summary.json").exists() and \
+            tomllib.loads((out_dir / "case.resolved.toml").read_text()) == _drop_none(resolved)
+    except (OSError, ValueError):
+        return False
 
 
 def run_series(case_paths, stresses, out_root, overrides=()):
@@ -39,8 +51,11 @@ def run_series(case_paths, stresses, out_root, overrides=()):
         label = case.case.name
         out_dir = out_root / label / f"{stress / 1e3:g}kPa"
         out_dir.mkdir(parents=True, exist_ok=True)
-        say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa -> {out_dir}")
-        app.run(case, resolved, path, out_dir, specimen_cache=out_root / label / "specimen.npz")
+        if _done(out_dir, resolved):
+            say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa: reusing the finished run in {out_dir}")
+        else:
+            say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa -> {out_dir}")
+            app.run(case, resolved, path, out_dir, specimen_cache=out_root / label / "specimen.npz")
         summary = json.loads((out_dir / "summary.json").read_text())
         results.setdefault(label, []).append(summary)
         curves[f"{label} {stress / 1e3:g} kPa"] = read_series(out_dir / "series.csv")
