@@ -1,4 +1,7 @@
-"""Sphere–sphere contact kernel and deterministic per-particle force reduction.
+"""Sphere–sphere contact kernel and deterministic per-particle force reduction —
+the step-by-step *reference* implementation. The engine runs the fused kernels of
+:mod:`de_domain.fused`; tests/dem/test_fused_kernels.py checks that they give
+bit-identical results to these.
 
 Stage 1 (:func:`sphere_pair_forces`): a parallel loop over fixed-size blocks of the
 half Verlet list computes each pair's force and torques into per-pair arrays and

@@ -167,7 +167,8 @@ def _edge_ids(triangles):
 def plane_wall_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_owned, young, pair_params,
                         wall_point, wall_normal, wall_vel, wall_mat, history, wall_fn,
                         force, torque, block_wall_force, block_energy):
-    """Sphere–plane contacts (DESIGN.md §2 geometry with the wall as body j).
+    """Sphere–plane contacts (DESIGN.md §2 geometry with the wall as body j): the dense
+    reference kernel; the engine runs the sparse one in :mod:`de_domain.fused`.
 
     Adds the force/torque on each sphere; stores the normal force per (sphere, wall)
     in ``wall_fn``; per-block sums of the force on each wall and of the energy terms
