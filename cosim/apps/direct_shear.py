@@ -403,8 +403,9 @@ def _frames(case, out_dir, count=10):
     if not case.output.vtk:
         return lambda engine, delta: None
     from de_domain.io import write_frame
-    from cosim.apps.dem import _FrameIndex
-    index = _FrameIndex(out_dir, resume=False)
+    from cosim.outputs import PvdCollection
+    (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
+    index = PvdCollection(Path(out_dir) / "particles.pvd")
     spacing = case.direct_shear.shear_distance / count
     state = {"next": 0.0}
 
