@@ -41,7 +41,7 @@ def summarize(delta, tau, sigma, dz, residual_fraction=0.2):
         "vertical_displacement_end": float(dz[-1]), "vertical_displacement_min": float(np.min(dz)),
         "vertical_displacement_max": float(np.max(dz)),
         "volume_change": "dilation" if dz[-1] > 0 else "contraction",
-        "softening": bool(peak > 1.05 * residual),
+        "softening": bool(peak > 1.05 * residual and not last[k]),  # a peak before the residual window
     }
 
 

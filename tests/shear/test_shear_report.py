@@ -23,6 +23,8 @@ def test_summary_peak_residual_and_dilation():
     assert s["residual_stress_ratio"] < 0.65 and s["softening"]
     assert s["volume_change"] == "dilation"
     assert summarize(delta, tau, sigma, -dz)["volume_change"] == "contraction"
+    hardening = summarize(delta, sigma * (0.5 + 0.1 * delta / 9e-3), sigma, -dz)
+    assert hardening["peak_shear_displacement"] == pytest.approx(9e-3) and not hardening["softening"]
 
 
 def test_mohr_coulomb_fit_recovers_phi_and_c():
