@@ -47,11 +47,11 @@ demo: setup
 	$(VENV)/bin/cosim run $(DEMO_CASE)
 
 test: setup
-	$(PY) -m pytest -m "not slow and not mpi" -q
-	$(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q -p no:cacheprovider
+	$(PY) -m pytest -m "not slow and not mpi" -q --color=no
+	$(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q --color=no -p no:cacheprovider
 
 test-slow: setup
-	$(PY) -m pytest -m slow -q
+	$(PY) -m pytest -m slow -q --color=no
 
 bench: setup
 	$(PY) benchmarks/dem_throughput.py
