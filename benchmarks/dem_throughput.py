@@ -13,7 +13,10 @@ The 80,000 bed is the 20,000 bed tiled 2 × 2 in x and y (copies shifted by L = 
 box 0.152 × 0.152 × 0.06 m, walls only on the outer faces: the copies touch along the
 former inner walls, a few spheres there start with small overlaps and push apart).
 
-Per (N, threads): one untimed step (neighbour build, JIT if not yet done), then
+Columns: wall time of the 2,000 steps, the process CPU time spent in them (all
+threads; on a shared machine wall > cpu/threads shows time lost to other load),
+the rate N·2000/wall, (2 × sphere contacts + wall contacts)/N, bytes per particle,
+list builds. Per (N, threads): one untimed step (neighbour build, JIT if not yet done), then
 ``engine.run(2000)`` timed; ``REPEATS`` times, median reported (a fresh engine each
 time). "JIT" is the time of the very first step of a throw-away 5k engine in this
 process (Numba compilation, or loading the on-disk cache), excluded from the rates.
@@ -93,13 +96,15 @@ def measure(n, threads, steps=STEPS):
     pos, radius, L = bed(n)
     engine = make_engine(pos, radius, L)
     engine.run(1)
+    c0 = time.process_time()
     t0 = time.perf_counter()
     engine.run(steps)
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     c = engine.contacts()
     contacts = (2 * c["i"].size + c["wall_particle"].size) / n
     mem = sum(engine.memory_bytes().values()) / n if hasattr(engine, "memory_bytes") else float("nan")
-    return {"n": n, "threads": threads, "wall": wall, "rate": n * steps / wall, "contacts": contacts,
+    return {"n": n, "threads": threads, "wall": wall, "cpu": cpu, "rate": n * steps / wall, "contacts": contacts,
             "mem": mem, "builds": engine.neighbors.n_builds}
 
 
@@ -112,7 +117,7 @@ def run_table(sizes, threads_list, repeats, steps=STEPS, out=print):
     out(f"# de_domain W1 throughput: {steps} steps, dt = {DT:g} s; threading {dthreading.describe()}; "
         f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
     out(f"# JIT / cache load (first step, excluded below): {jit:.2f} s")
-    out(f"{'N':>7} {'threads':>7} {'wall [s]':>9} {'particle-steps/s':>17} {'contacts/particle':>17} "
+    out(f"{'N':>7} {'threads':>7} {'wall [s]':>9} {'cpu [s]':>8} {'particle-steps/s':>17} {'contacts/particle':>17} "
         f"{'bytes/particle':>14} {'rebuilds':>8}   (median of {repeats}; all rates)")
     rows = []
     for n in sizes:
@@ -123,7 +128,7 @@ def run_table(sizes, threads_list, repeats, steps=STEPS, out=print):
             row = dict(best, wall=statistics.median(walls), rate=n * steps / statistics.median(walls),
                        rates=[r["rate"] for r in runs])
             rows.append(row)
-            out(f"{n:>7} {threads:>7} {row['wall']:>9.3f} {row['rate']:>17.3e} {row['contacts']:>17.2f} "
+            out(f"{n:>7} {threads:>7} {row['wall']:>9.3f} {row['cpu']:>8.2f} {row['rate']:>17.3e} {row['contacts']:>17.2f} "
                 f"{row['mem']:>14.0f} {row['builds']:>8}   "
                 + " ".join(f"{r:.2e}" for r in row["rates"]))
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
