@@ -18,8 +18,9 @@ threads; on a shared machine wall > cpu/threads shows time lost to other load),
 the rate N·2000/wall, (2 × sphere contacts + wall contacts)/N, bytes per particle,
 list builds. Per (N, threads): one untimed step (neighbour build, JIT if not yet done), then
 ``engine.run(2000)`` timed; ``REPEATS`` times, median reported (a fresh engine each
-time). "JIT" is the time of the very first step of a throw-away 5k engine in this
-process (Numba compilation, or loading the on-disk cache), excluded from the rates.
+time). "JIT" is the time of the first step of a throw-away 5k engine (minus a
+second step): once with an empty Numba cache in a subprocess (compilation), once in
+this process (normally loading the on-disk cache); both are excluded from the rates.
 Memory per particle: ``Engine.memory_bytes()`` (nbytes of every per-particle and
 per-contact array the engine holds, including the spatially sorted copies a run
 works on) / N. Threading: ``de_domain.threading`` (set on import, before Numba
@@ -89,6 +90,24 @@ def jit_time():
     return (t1 - t0) - (time.perf_counter() - t1)
 
 
+def cold_jit_time():
+    """First step with an empty Numba cache: de_domain copied to a temporary directory
+    without __pycache__, timed in a subprocess (the repository's cache is untouched)."""
+    import shutil
+    import subprocess
+    import tempfile
+
+    src = Path(__file__).resolve().parents[1] / "de_domain"
+    with tempfile.TemporaryDirectory(prefix="dem_cold_") as tmp:
+        shutil.copytree(src, Path(tmp) / "de_domain", ignore=shutil.ignore_patterns("__pycache__"))
+        code = ("import sys; sys.path.insert(0, sys.argv[1]); import de_domain; "
+                "sys.path.insert(1, sys.argv[2]); import dem_throughput as b; "
+                "assert de_domain.__file__.startswith(sys.argv[1]); print(b.jit_time())")
+        out = subprocess.run([sys.executable, "-c", code, tmp, str(Path(__file__).resolve().parent)],
+                             check=True, capture_output=True, text=True).stdout
+    return float(out.split()[-1])
+
+
 def measure(n, threads, steps=STEPS):
     import numba
 
@@ -108,15 +127,17 @@ def measure(n, threads, steps=STEPS):
             "mem": mem, "builds": engine.neighbors.n_builds}
 
 
-def run_table(sizes, threads_list, repeats, steps=STEPS, out=print):
+def run_table(sizes, threads_list, repeats, steps=STEPS, out=print, cold=True):
     import numba
 
     from de_domain import threading as dthreading
 
+    cold_jit = cold_jit_time() if cold else float("nan")
     jit = jit_time()
     out(f"# de_domain W1 throughput: {steps} steps, dt = {DT:g} s; threading {dthreading.describe()}; "
         f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
-    out(f"# JIT / cache load (first step, excluded below): {jit:.2f} s")
+    out(f"# JIT, excluded below: first step with an empty Numba cache (compilation) {cold_jit:.1f} s; "
+        f"with the on-disk cache {jit:.2f} s")
     out(f"{'N':>7} {'threads':>7} {'wall [s]':>9} {'cpu [s]':>8} {'particle-steps/s':>17} {'contacts/particle':>17} "
         f"{'bytes/particle':>14} {'rebuilds':>8}   (median of {repeats}; all rates)")
     rows = []
@@ -141,8 +162,9 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--steps", type=int, default=STEPS)
+    ap.add_argument("--no-cold", action="store_true", help="skip the empty-cache compilation timing")
     args = ap.parse_args(argv)
-    run_table(args.sizes, args.threads, args.repeats, args.steps)
+    run_table(args.sizes, args.threads, args.repeats, args.steps, cold=not args.no_cold)
 
 
 if __name__ == "__main__":
