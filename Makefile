@@ -18,7 +18,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN       := mpirun --oversubscribe
 DEMO_CASE    ?= runs/coupled_footing_on_sand.toml
 
-.PHONY: setup demo test test-slow bench bench-peers clean
+.PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers clean
 
 setup: apt-packages $(STAMP)
 
@@ -45,6 +45,12 @@ $(STAMP): pyproject.toml Makefile
 
 demo: setup
 	$(VENV)/bin/cosim run $(DEMO_CASE)
+
+demo-shear: setup
+	$(VENV)/bin/cosim run runs/direct_shear_small.toml
+
+lab-series: setup
+	$(VENV)/bin/cosim series runs/direct_shear_small.toml runs/direct_shear_small_loose.toml --out runs/out/direct_shear_series_small
 
 test: setup
 	$(PY) -m pytest -m "not slow and not mpi" -q --color=no
