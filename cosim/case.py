@@ -423,6 +423,17 @@ def _check_fe(path, fe):
         raise CaseError(path, "fe.damping.alpha", fe.damping.alpha, "local non-viscous damping needs 0 <= alpha < 1")
 
 
+def _check_packing_file(path, key, value):
+    """A packing named by a case exists and has a format ``de_domain.packing`` reads."""
+    if value is None:
+        raise CaseError(path, key, None, "source = 'file' needs a packing file (.npz or .txt)")
+    f = resolve_path(path, value)
+    if not f.is_file():
+        raise CaseError(path, key, value, f"file not found (looked for {f})")
+    if f.suffix not in (".npz", ".txt", ".dat", ".dump"):
+        raise CaseError(path, key, value, "allowed formats: .npz, .txt/.dat ('x y z r'), .dump (LIGGGHTS 'id radius x y z')")
+
+
 def _check_dem(path, dem):
     names = [m.name for m in dem.materials]
     for i, name in enumerate(names):
@@ -434,13 +445,7 @@ def _check_dem(path, dem):
     if p.material not in names:
         raise CaseError(path, "dem.particles.material", p.material, f"must be one of the materials: {names}")
     if p.source == "file":
-        if p.file is None:
-            raise CaseError(path, "dem.particles.file", None, "source = 'file' needs a packing file (.npz or .txt)")
-        f = resolve_path(path, p.file)
-        if not f.is_file():
-            raise CaseError(path, "dem.particles.file", p.file, f"file not found (looked for {f})")
-        if f.suffix not in (".npz", ".txt", ".dat", ".dump"):
-            raise CaseError(path, "dem.particles.file", p.file, "allowed formats: .npz, .txt/.dat ('x y z r'), .dump (LIGGGHTS 'id radius x y z')")
+        _check_packing_file(path, "dem.particles.file", p.file)
     else:
         for key in ("count", "box", "radius"):
             if getattr(p, key) is None:
@@ -497,11 +502,7 @@ def _check_direct_shear(path, case):
     if ds.ramp_distance >= ds.shear_distance:
         raise CaseError(path, "direct_shear.ramp_distance", ds.ramp_distance, f"must be smaller than shear_distance = {ds.shear_distance} m")
     if sp.source == "file":
-        if sp.file is None:
-            raise CaseError(path, "specimen.file", None, "source = 'file' needs a packing file (.npz or .txt)")
-        f = resolve_path(path, sp.file)
-        if not f.is_file():
-            raise CaseError(path, "specimen.file", sp.file, f"file not found (looked for {f})")
+        _check_packing_file(path, "specimen.file", sp.file)
         return
     from de_domain.packing import SIEVE_PRESETS
     if (sp.sieve_diameters is None) != (sp.sieve_passing is None):
