@@ -82,7 +82,7 @@ def restitution_of_damping_ratio(alpha: float) -> float:
     if alpha < 1.0:
         s = math.sqrt(1.0 - alpha * alpha)
         phase = math.atan2(2.0 * alpha * s, 1.0 - 2.0 * alpha * alpha)
-        return math.exp(-alpha / s * (math.pi - phase) if alpha < math.sqrt(0.5) else -alpha / s * phase)
+        return math.exp(-alpha / s * (math.pi - phase))  # atan2 covers both α < and > 1/√2
     if alpha == 1.0:
         return math.exp(-2.0)
     s = math.sqrt(alpha * alpha - 1.0)

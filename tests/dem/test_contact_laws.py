@@ -36,7 +36,7 @@ def head_on(restitution, speed=0.1):
     return ratio, in_contact * engine.dt, expected
 
 
-@pytest.mark.parametrize("restitution", [0.1, 0.3, 0.5, 0.7, 0.9])
+@pytest.mark.parametrize("restitution", [0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 0.9])
 def test_rebound_ratio_equals_restitution(restitution):
     ratio, _, _ = head_on(restitution)
     assert ratio == pytest.approx(restitution, rel=0.01)
@@ -108,3 +108,14 @@ def test_hertz_impact_duration_closed_form():
 def test_hertz_rebound_ratio_equals_restitution(restitution):
     ratio, _, _ = hertz_head_on(restitution)
     assert ratio == pytest.approx(restitution, rel=0.01)
+
+
+def test_no_tension_restitution_is_continuous_and_decreasing_in_damping_ratio():
+    """Schwager & Pöschel's e(α) has no jump at α = 1/√2 or α = 1 (closed form at α = 1: e⁻²)."""
+    from de_domain.materials import restitution_of_damping_ratio
+    alphas = np.linspace(1e-3, 3.0, 3001)
+    e = np.array([restitution_of_damping_ratio(a) for a in alphas])
+    assert np.all(np.diff(e) < 0)
+    assert np.max(np.abs(np.diff(e))) < 5e-3
+    assert restitution_of_damping_ratio(1.0 - 1e-9) == pytest.approx(np.exp(-2.0), rel=1e-6)
+    assert restitution_of_damping_ratio(np.sqrt(0.5)) == pytest.approx(np.exp(-np.pi / 2), rel=1e-12)
