@@ -98,14 +98,19 @@ def damping_ratio(restitution: float) -> float:
     :func:`restitution_of_damping_ratio` (α) = e by bisection, starting from the
     classical value; for e ≥ 0.9 the two differ by < 0.3 %.
     """
+    return _bisect_damping_ratio(restitution_of_damping_ratio, restitution, iterations=200)
+
+
+def _bisect_damping_ratio(restitution_of, restitution, iterations):
+    """The α ≥ 0 with ``restitution_of(α) = e`` (decreasing in α), by bisection."""
     if restitution >= 1.0:
         return 0.0
     lo, hi = 0.0, 1.0
-    while restitution_of_damping_ratio(hi) > restitution:
+    while restitution_of(hi) > restitution:
         hi *= 2.0
-    for _ in range(200):
+    for _ in range(iterations):
         mid = 0.5 * (lo + hi)
-        if restitution_of_damping_ratio(mid) > restitution:
+        if restitution_of(mid) > restitution:
             lo = mid
         else:
             hi = mid
@@ -150,18 +155,7 @@ def restitution_of_hertz_damping_ratio(alpha):
 def damping_ratio_hertz(restitution: float) -> float:
     """α giving the restitution e with the Hertz law (bisection on
     :func:`restitution_of_hertz_damping_ratio`)."""
-    if restitution >= 1.0:
-        return 0.0
-    lo, hi = 0.0, 1.0
-    while restitution_of_hertz_damping_ratio(hi) > restitution:
-        hi *= 2.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if restitution_of_hertz_damping_ratio(mid) > restitution:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+    return _bisect_damping_ratio(restitution_of_hertz_damping_ratio, restitution, iterations=60)
 
 
 def material_arrays(materials):
