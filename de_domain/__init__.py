@@ -39,23 +39,23 @@ viscous_damping=0.0, skin=None)``
 ``de_domain.io``: ``write_particles_vtu(path, particles)``, ``write_facets_vtu(path, mesh)``,
 ``write_frame(directory, engine, step)``.
 
-Performance notes: without facet meshes, ``Engine.run(n)`` is one compiled loop
-(``de_domain.fused``) with two parallel regions per step that returns to Python only
-to rebuild the Verlet lists; the loops visit particles in a spatial (Morton) order,
-and runs of 8 steps or more work on copies of the particle arrays sorted that way
-(the public arrays keep their order; they are written back after the run).
-Plane-wall contact history is sparse (walls within r + skin). ``Engine.memory_bytes()``
-lists the bytes of every per-particle and per-contact array. ``de_domain.threading``
-sets the Numba threading defaults (omp layer, ``OMP_WAIT_POLICY=PASSIVE``) on import,
-so import de_domain before the first ``numba.set_num_threads``/parallel call.
+Performance notes: ``Engine.run(n)`` is one compiled loop (``de_domain.fused``) with
+two parallel regions per step that returns to Python only to rebuild the Verlet
+lists; plane walls and facet meshes (moving rigidly or with per-vertex velocities)
+are inside it. The loops visit particles in a spatial (Morton) order, and runs of
+8 steps or more work on copies of the particle arrays sorted that way (the public
+arrays keep their order; they are written back after the run). Plane-wall contact
+history is sparse (walls within r + skin). ``Engine.memory_bytes()`` lists the
+bytes of every per-particle and per-contact array. ``de_domain.threading`` sets the
+Numba threading defaults (omp layer, ``OMP_WAIT_POLICY=PASSIVE``) on import, so
+import de_domain before the first ``numba.set_num_threads``/parallel call.
 
 Developer notes: kernels are ``numba.njit(cache=True)``; Numba's cache does not
 notice when a *called* kernel in another module changes, so after editing e.g.
 ``contact_laws.py`` remove ``de_domain/__pycache__`` (stale callers otherwise keep
-the old code). Results are bit-identical for any Numba thread count and any Verlet
-rebuild frequency (fixed-order reductions, canonically sorted neighbour lists), and
-the fused kernels are bit-identical to the step-by-step reference kernels of
-``sphere_contacts``/``walls``/``integrate`` (tests/dem/test_fused_kernels.py).
+the old code). Results are bit-identical for any Numba thread count, any Verlet
+rebuild frequency and either storage path (fixed-order reductions, canonically
+sorted neighbour lists; tests/dem/test_fused_kernels.py).
 """
 from . import threading as _threading
 

@@ -1,8 +1,8 @@
 """The DEM step sequence (DESIGN.md §2; YADE-style visible engine list).
 
-One step is, in order (:mod:`de_domain.fused` runs 1–7 for many steps in one
-compiled loop with two parallel regions per step when there are no facet meshes;
-with facets, 3–4 and 5 are separate kernels):
+One step is, in order (:mod:`de_domain.fused` runs 3–7 for many steps in one
+compiled loop with two parallel regions per step; 1–2 happen in Python when a run
+starts or the lists must be rebuilt):
 
 1. boundary bookkeeping   – walls/facets moved from outside since the last step
 2. neighbour update       – Verlet lists rebuilt when displacements exceed the skin
@@ -21,15 +21,10 @@ import numpy as np
 
 from . import fused
 from .contact_laws import HERTZ, LAWS
-from .integrate import BLOCK as INTEGRATE_BLOCK
-from .integrate import N_ENERGY as INTEGRATE_N_ENERGY
-from .integrate import leapfrog
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
 from .neighbors import NeighborList
 from .particles import ARRAY_FIELDS, Particles
-from .walls import BLOCK as WALL_BLOCK
-from .walls import N_ENERGY as WALL_N_ENERGY
-from .walls import FacetMesh, PlaneWall, facet_contacts, facet_vertex_forces
+from .walls import FacetMesh, PlaneWall
 
 SORTED_MIN_STEPS = 8  # runs at least this long use spatially sorted copies of the particle arrays
 STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
@@ -155,10 +150,6 @@ class Engine:
         while done < nsteps:
             self._book_boundary_jumps()
             self._update_lists()
-            if self.facets:
-                self._step_with_facets()
-                done += 1
-                continue
             todo = min(nsteps - done, self.neighbors.perm_step + fused.PERM_EVERY - self.step_count)
             done += self._advance(todo)
 
@@ -181,7 +172,7 @@ class Engine:
             nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, p.n_owned, new_order=refresh)
             self._allocate_pair_arrays(nl.pair_js.size)
 
-    def _kernel_args(self, wall_point, wall_normal, wall_vel, wall_mat, sorted_copies=None):
+    def _kernel_args(self, wall_point, wall_normal, wall_vel, wall_mat, facet_state, sorted_copies=None):
         p = self.particles
         nl = self.neighbors
         has_constraints = bool(p.blocked.any() or p.prescribed.any())
@@ -192,12 +183,16 @@ class Engine:
             ref_pos = nl.ref_pos
         else:
             perm, arrays, ref_pos = sorted_copies
-        rolling = nl.rolling
-        return ((has_constraints, rolling, self.law, self.dt, self.gravity, self.local_damping, self.viscous_damping,
-                 p.n_owned) + arrays + (self.young, self.pair_params, perm, nl.i_start, nl.pair_js, nl.j_start,
-                                        nl.j_pairs, nl.ht, nl.hr, self.pair_fc, self.pair_ov,
-                                        wall_point, wall_normal, wall_vel, wall_mat, nl.w_start, nl.w_idx, nl.w_hist,
-                                        nl.w_fn, nl.w_force, ref_pos, nl.ref_wall_point, nl.skin))
+        vertices, vertex_vel, vertex_impulse = facet_state
+        ref_vertices = nl.ref_vertices if nl.ref_vertices is not None else vertices
+        return ((has_constraints, nl.rolling, self.law, self.dt, self.gravity, self.local_damping,
+                 self.viscous_damping, p.n_owned) + arrays
+                + (self.young, self.pair_params, perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_pairs, nl.ht, nl.hr,
+                   self.pair_fc, self.pair_ov, wall_point, wall_normal, wall_vel, wall_mat, nl.w_start, nl.w_idx,
+                   nl.w_hist, nl.w_fn, nl.w_force, nl.perm, vertices, vertex_vel, self._triangles,
+                   self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start, nl.f_tri,
+                   nl.facet_history, self.facet_active, self.facet_force, self.facet_lambda, self._vertex_force,
+                   vertex_impulse, ref_pos, nl.ref_wall_point, ref_vertices, nl.skin))
 
     def _sorted_copies(self):
         """Particle arrays gathered into the spatial order (index = perm position)."""
@@ -212,7 +207,7 @@ class Engine:
         return np.arange(p.n, dtype=np.int32), arrays, self.neighbors.ref_pos[perm]
 
     def _advance(self, nsteps):
-        """Fused steps (no facets) until ``nsteps`` are done or the lists need a rebuild.
+        """Fused steps until ``nsteps`` are done or the lists need a rebuild.
 
         Runs of ``SORTED_MIN_STEPS`` or more work on copies of the particle arrays in
         the spatial order (gathered before, scattered after: cache-friendly); shorter
@@ -223,7 +218,10 @@ class Engine:
         copies = None
         if nsteps >= SORTED_MIN_STEPS and p.n_owned == p.n:
             copies = self._sorted_copies()
-        fused.advance(nsteps, True, *self._kernel_args(wp, wn, wv, wm, copies), self._books, clock, np.zeros(11))
+        vertices, vertex_vel = self._gather_facets()
+        impulse = (np.concatenate([m.vertex_impulse for m in self.facets]) if self.facets else np.zeros((0, 3)))
+        fused.advance(nsteps, *self._kernel_args(wp, wn, wv, wm, (vertices, vertex_vel, impulse), copies),
+                      self._books, clock)
         if copies is not None:
             perm = self.neighbors.perm
             a = copies[1]
@@ -237,54 +235,18 @@ class Engine:
         self.time = float(clock[0])
         self.step_count += done
         self._finish_walls(wp)
+        self._finish_facets(vertices, impulse)
         return done
 
     def _finish_walls(self, wall_point):
         nl = self.neighbors
         if not self.walls:
             return
-        totals = fused.wall_totals(len(self.walls), nl.w_idx, nl.w_particle, nl.w_order, nl.w_force, WALL_BLOCK)
+        totals = fused.wall_totals(len(self.walls), nl.w_idx, nl.w_particle, nl.w_order, nl.w_force, fused.PBLOCK)
         for w, wall in enumerate(self.walls):
             wall.force = totals[w].copy()
             wall.point = wall_point[w].copy()
             wall._engine_point = wall.point.copy()
-
-    def _step_with_facets(self):
-        """One step with facet meshes: fused sphere + wall forces, facets, leapfrog."""
-        p = self.particles
-        dt = self.dt
-        nl = self.neighbors
-        vertices, vertex_vel = self._gather_facets()
-        wp, wn, wv, wm = self._wall_arrays()
-        e_out = np.zeros(11)
-        fused.advance(1, False, *self._kernel_args(wp, wn, wv, wm), self._books, np.zeros(2), e_out)
-        pe = e_out[:5]
-        we = e_out[5:11]
-        n_blocks = (p.n_owned + WALL_BLOCK - 1) // WALL_BLOCK
-        facet_energy = np.zeros((n_blocks, WALL_N_ENERGY))
-        facet_contacts(self.law, dt, p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass,
-                       p.material, p.n_owned, self.young, self.pair_params, vertices, vertex_vel, self._triangles,
-                       self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start,
-                       nl.f_tri, nl.facet_history, self.facet_active, p.force, p.torque, self.facet_force,
-                       self.facet_lambda, facet_energy)
-        facet_vertex_forces(self._triangles, nl.f_start, nl.f_tri, self.facet_force, self.facet_lambda,
-                            self._vertex_force)
-        self._scatter_facet_forces()
-        integrate_energy = np.zeros(((p.n_owned + INTEGRATE_BLOCK - 1) // INTEGRATE_BLOCK, INTEGRATE_N_ENERGY))
-        leapfrog(dt, self.gravity, self.local_damping, self.viscous_damping, p.n_owned, p.pos, p.vel,
-                 self.acceleration, p.angvel, p.mass, p.inertia, p.blocked, p.prescribed,
-                 p.prescribed_velocity, p.force, p.torque, integrate_energy)
-        we = we + facet_energy.sum(axis=0)
-        ie = integrate_energy.sum(axis=0)
-        fused.record_energy(self._books, pe, we, ie)
-        for w in range(wp.shape[0]):
-            wp[w] = wp[w] + wv[w] * dt
-        self._finish_walls(wp)
-        for mesh in self.facets:
-            mesh.vertices += mesh.vertex_velocity * dt
-            mesh._engine_vertices = mesh.vertices.copy()
-        self.time += dt
-        self.step_count += 1
 
     # ------------------------------------------------------------------ boundaries
     def _gather_facets(self):
@@ -293,12 +255,16 @@ class Engine:
         return (np.concatenate([m.vertices for m in self.facets]),
                 np.concatenate([m.vertex_velocity for m in self.facets]))
 
-    def _scatter_facet_forces(self):
+    def _finish_facets(self, vertices, impulse):
+        """Scatter the advanced vertices, the last step's vertex forces and the
+        accumulated impulses back to the meshes."""
         for k, mesh in enumerate(self.facets):
-            f = self._vertex_force[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
-            mesh.vertex_force = f.copy()
-            mesh.vertex_impulse += f * self.dt
-            mesh.force = f.sum(axis=0)
+            part = slice(self._vertex_offsets[k], self._vertex_offsets[k + 1])
+            mesh.vertices[:] = vertices[part]
+            mesh._engine_vertices = mesh.vertices.copy()
+            mesh.vertex_force = self._vertex_force[part].copy()
+            mesh.vertex_impulse[:] = impulse[part]
+            mesh.force = mesh.vertex_force.sum(axis=0)
 
     def _book_boundary_jumps(self):
         """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force)."""

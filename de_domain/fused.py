@@ -1,4 +1,4 @@
-"""Fused multi-step DEM kernels (the fast path of :class:`~de_domain.engine.Engine`).
+"""Fused multi-step DEM kernels: the whole step of :class:`~de_domain.engine.Engine`.
 
 One step is two parallel regions, inside one njit'd loop over steps that returns
 to Python only when the Verlet lists must be rebuilt (or the requested steps are
@@ -9,26 +9,41 @@ done):
   n × F, overlap and contact history per pair; energy sums per block;
 * region 2, per block of particles: the force/torque on each particle gathered
   from its i-side pairs (ascending j) then its j-side pairs (ascending i), the
-  plane walls it may touch (ascending wall index), gravity, background damping and
-  the leapfrog update; energy sums and the largest displacement per block;
-* serial: energy books, wall motion, the rebuild test.
+  plane walls it may touch (ascending wall index), the facet triangles it may
+  touch (ascending triangle index, :func:`de_domain.walls.facet_contacts_of`),
+  gravity, background damping and the leapfrog update; energy sums and the largest
+  displacement per block;
+* serial: energy books, facet vertex forces and impulses, wall and vertex motion,
+  the rebuild test.
+
+Time integration (DESIGN.md §2; thesis Eq. 3.38–3.44), per DOF with resultant F
+(contacts + gravity):
+
+    F_d = −α_b |F| sign(v^{n−½}) − α_v m v^{n−½}     (Cundall local + viscous)
+    v^{n+½} = v^{n−½} + Δt (F + F_d)/m,   x^{n+1} = x^n + Δt v^{n+½}
+
+the same for rotations with I and the torque (no gravity). A blocked DOF keeps its
+velocity, a prescribed DOF takes its prescribed velocity; the reaction they need
+does work, booked as boundary work. Energies at tⁿ use v^n = (v^{n−½} + v^{n+½})/2,
+with which the leapfrog kinetic-energy change equals Σ F·v^n Δt exactly.
 
 Ordering and determinism. Particles keep their positions in the public arrays;
 the loops visit them in a spatial (cell-list) order ``perm`` for cache locality.
 ``perm`` is fixed when the lists are first built and refreshed every
 ``PERM_EVERY`` steps (on the step count, never on rebuilds), so results do not
 depend on the thread count or the rebuild frequency. Every per-particle sum is
-taken in the canonical order of the original kernels (pairs by original index,
-i-side before j-side, walls by index), so positions, velocities, forces, torques,
-contact histories and wall forces are bit-identical to the step-by-step kernels
-of ``sphere_contacts``/``walls``/``integrate``; only the energy books are summed
-in a different (fixed) block order.
+taken in a canonical order (pairs by original index, i-side before j-side, walls
+by index, facets by triangle), so positions, velocities, forces, torques, contact
+histories and wall forces are bit-identical for any thread count, any skin (list
+rebuild frequency) and either storage path (in place through ``perm``, or spatially
+sorted copies); only the energy books are summed in block order.
 
 Storage (CSR over perm positions ``s``): pairs of particle ``perm[s]`` as i-side are
 ``i_start[s]:i_start[s+1]`` (partner ``pair_j``, sorted by index); its j-side pairs
 are ``j_pairs[j_start[s]:j_start[s+1]]`` (sorted by i). Plane-wall candidates
 (walls within r + skin at the build) are ``w_start[s]:w_start[s+1]`` with their
-own sparse history; the rebuild test includes the wall displacements.
+own sparse history. Facet candidates are a CSR over the public particle index
+(``f_start``/``f_tri``, reached through ``orig[s]``).
 """
 import math
 
@@ -36,6 +51,7 @@ import numpy as np
 from numba import njit, prange
 
 from .contact_laws import contact_force, linear_normal_stiffness, released_energy
+from .walls import facet_contacts_of, facet_vertex_forces
 
 PBLOCK = 256          # particles per parallel work item (and per energy block)
 PERM_EVERY = 100_000  # steps between refreshes of the spatial order
@@ -304,16 +320,19 @@ def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov
 
 
 @njit(cache=True)
-def _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
                     perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
                     wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
-                    ref_pos, e2, dmax):
-    """Region 2 work item: gather, plane walls, then (if ``integrate``) gravity, damping
-    and leapfrog of the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK)."""
+                    orig, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, f_hist,
+                    f_active, f_force, f_lambda, ref_pos, e2, dmax):
+    """Region 2 work item: gather, plane walls, facets, then gravity, damping and
+    leapfrog of the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK).
+    ``orig[s]`` is the particle's index in the public arrays (the facet CSR's index)."""
     n = perm.size
     we = np.zeros(6)
+    sums = np.zeros(6)
     ke_t = 0.0
     ke_r = 0.0
     potential = 0.0
@@ -376,12 +395,19 @@ def _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, lo
             we[0] += (wfx * wall_vel[w, 0] + wfy * wall_vel[w, 1] + wfz * wall_vel[w, 2]) * dt
             for k in range(5):
                 we[k + 1] += res[9 + k]
+        if f_tri.size:  # triangle facets (walls.facet_contacts_of), after the plane walls
+            k = orig[s]
+            if f_start[k + 1] > f_start[k]:
+                sums[0] = fx; sums[1] = fy; sums[2] = fz
+                sums[3] = tx; sums[4] = ty; sums[5] = tz
+                facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, material, young,
+                                  pair_params, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh,
+                                  f_start, f_tri, f_hist, f_active, f_force, f_lambda, sums, we)
+                fx = sums[0]; fy = sums[1]; fz = sums[2]
+                tx = sums[3]; ty = sums[4]; tz = sums[5]
         force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
         torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
-        if not integrate:
-            continue
-        # gravity, background damping, leapfrog (as integrate.leapfrog, unrolled per DOF;
-        # same operations in the same order)
+        # gravity, background damping, leapfrog (module docstring)
         m = mass[i]
         inv = 1.0 / m
         constrained = False
@@ -486,19 +512,20 @@ def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
 
 
 @njit(parallel=True, cache=True)
-def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def advance(nsteps, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
             prescribed_velocity, force, torque, young, pair_params,
             perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
             wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
-            ref_pos, ref_wall_point, skin, books, clock, e_out):
-    """Up to ``nsteps`` steps (``integrate`` True) or, with ``integrate`` False, only the
-    sphere and wall forces of one step (the facet path integrates afterwards).
-
-    Stops early when the lists must be rebuilt before the next step. ``clock`` =
-    [time, steps done]; ``e_out`` receives the last step's summed energy terms
-    (pair 5, walls 6, integrate 5) when ``integrate`` is False. Returns whether a
-    rebuild is due.
+            orig, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, f_hist,
+            f_active, f_force, f_lambda, vertex_force, vertex_impulse,
+            ref_pos, ref_wall_point, ref_vertices, skin, books, clock):
+    """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the
+    next step. ``clock`` = [time, steps done]. Per step, after the two parallel
+    regions (serial, fixed order): energy books, the force on every facet vertex
+    (``vertex_force``; ``vertex_impulse`` += F Δt), x_wall += v Δt, vertices += v Δt,
+    and the rebuild test (particles, walls and vertices against their positions at
+    the last build). Returns whether a rebuild is due.
     """
     n = perm.size
     nb = (n + PBLOCK - 1) // PBLOCK
@@ -506,7 +533,7 @@ def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local
     e2 = np.zeros((nb, N_E2))
     dmax = np.zeros(nb)
     n_walls = wall_point.shape[0]
-    dw2 = 0.0
+    n_vertices = vertices.shape[0]
     rebuild = False
     pe = np.empty(N_E1)
     we = np.empty(6)
@@ -516,12 +543,13 @@ def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local
             _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
                         perm, i_start, pair_js, ht, hr, rolling, pair_fc, pair_ov, force, torque, e1)
         for b in prange(nb):
-            _particle_block(b, integrate, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
+            _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                             prescribed_velocity, force, torque, young, pair_params,
                             perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
-                            wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx,
-                            w_hist, w_fn, w_force, ref_pos, e2, dmax)
+                            wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
+                            orig, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri,
+                            f_hist, f_active, f_force, f_lambda, ref_pos, e2, dmax)
         for k in range(N_E1):
             pe[k] = 0.0
         for k in range(6):
@@ -536,24 +564,26 @@ def advance(nsteps, integrate, has_constraints, rolling, law, dt, gravity, local
                 we[k] += e2[b, k]
             for k in range(5):
                 ie[k] += e2[b, 6 + k]
-        if not integrate:
-            for k in range(N_E1):
-                e_out[k] = pe[k]
-            for k in range(6):
-                e_out[N_E1 + k] = we[k]
-            return False
         record_energy(books, pe, we, ie)
         d2 = 0.0
         for b in range(nb):
             d2 = max(d2, dmax[b])
         dw2 = 0.0
         for w in range(n_walls):
-            for d in range(3):
-                wall_point[w, d] = wall_point[w, d] + wall_vel[w, d] * dt
             dd = 0.0
             for d in range(3):
+                wall_point[w, d] = wall_point[w, d] + wall_vel[w, d] * dt
                 dd += (wall_point[w, d] - ref_wall_point[w, d]) * (wall_point[w, d] - ref_wall_point[w, d])
             dw2 = max(dw2, dd)
+        if n_vertices:
+            facet_vertex_forces(triangles, f_tri, f_force, f_lambda, vertex_force)
+            for v in range(n_vertices):
+                dd = 0.0
+                for d in range(3):
+                    vertex_impulse[v, d] += vertex_force[v, d] * dt
+                    vertices[v, d] += vertex_vel[v, d] * dt
+                    dd += (vertices[v, d] - ref_vertices[v, d]) * (vertices[v, d] - ref_vertices[v, d])
+                dw2 = max(dw2, dd)
         clock[0] += dt
         clock[1] += 1.0
         dp = math.sqrt(d2)

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import fused
+from .walls import point_triangle_distance2
 
 MAX_CELLS_PER_PARTICLE = 8
 
@@ -69,14 +70,6 @@ def build_cell_grid(pos, n_active, cell_size, max_cells):
 
 
 @njit(cache=True)
-def _cell_coords(c, dims):
-    cz = c % dims[2]
-    cy = (c // dims[2]) % dims[1]
-    cx = c // (dims[1] * dims[2])
-    return cx, cy, cz
-
-
-@njit(cache=True)
 def _insertion_sort(a, start, stop):
     """Sort a[start:stop] ascending in place (short neighbour segments)."""
     for k in range(start + 1, stop):
@@ -86,124 +79,6 @@ def _insertion_sort(a, start, stop):
             a[m + 1] = a[m]
             m -= 1
         a[m + 1] = v
-
-
-@njit(parallel=True, cache=True)
-def _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
-                         n_active, i_start, j_out, fill):
-    """Pass 1 (fill=False): count partners j > i per i. Pass 2: write them."""
-    for i in prange(n_active):
-        cx, cy, cz = _cell_coords(particle_cell[i], dims)
-        count = 0
-        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
-            for ay in range(max(cy - 1, 0), min(cy + 2, dims[1])):
-                for az in range(max(cz - 1, 0), min(cz + 2, dims[2])):
-                    c = (ax * dims[1] + ay) * dims[2] + az
-                    for s in range(cell_start[c], cell_start[c + 1]):
-                        j = cell_particles[s]
-                        if j <= i:
-                            continue
-                        cut = radius[i] + radius[j] + skin
-                        dx = pos[j, 0] - pos[i, 0]
-                        dy = pos[j, 1] - pos[i, 1]
-                        dz = pos[j, 2] - pos[i, 2]
-                        if dx * dx + dy * dy + dz * dz < cut * cut:
-                            if fill:
-                                j_out[i_start[i] + count] = j
-                            count += 1
-        if not fill:
-            i_start[i + 1] = count
-        else:
-            _insertion_sort(j_out, i_start[i], i_start[i] + count)
-
-
-def build_pair_list(pos, radius, n_active, skin, max_cells):
-    """Half Verlet list of sphere pairs within r_i + r_j + skin, grouped by i.
-
-    Returns (pair_i, pair_j, i_start, grid) with grid the cell-list tuple.
-    (Plain Python orchestration: Numba 0.56 crashes when loading a cached njit
-    function that calls a parallel one.)
-    """
-    r_max = float(radius[:n_active].max())
-    grid = build_cell_grid(pos, n_active, 2.0 * r_max + skin, max_cells)
-    lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
-    i_start = np.zeros(n_active + 1, dtype=np.int64)
-    dummy = np.empty(0, dtype=np.int32)
-    _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
-                         n_active, i_start, dummy, False)
-    i_start = np.cumsum(i_start)
-    pair_j = np.empty(i_start[-1], dtype=np.int32)
-    _count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell,
-                         n_active, i_start, pair_j, True)
-    pair_i = np.repeat(np.arange(n_active, dtype=np.int32), np.diff(i_start))
-    return pair_i, pair_j, i_start, grid
-
-
-@njit(cache=True)
-def build_j_csr(pair_j, n):
-    """CSR of pair indices per particle on the j side (ascending pair index)."""
-    counts = np.zeros(n + 1, dtype=np.int64)
-    for p in range(pair_j.size):
-        counts[pair_j[p] + 1] += 1
-    j_start = np.cumsum(counts)
-    fill = j_start[:-1].copy()
-    j_pairs = np.empty(pair_j.size, dtype=np.int64)
-    for p in range(pair_j.size):
-        j = pair_j[p]
-        j_pairs[fill[j]] = p
-        fill[j] += 1
-    return j_start, j_pairs
-
-
-@njit(cache=True)
-def point_triangle_distance2(px, py, pz, a, b, c):
-    """Squared distance from a point to triangle abc (Ericson, RTCD §5.1.5)."""
-    q = closest_point_on_triangle(px, py, pz, a, b, c)
-    return (q[0] - px) ** 2 + (q[1] - py) ** 2 + (q[2] - pz) ** 2
-
-
-@njit(cache=True)
-def closest_point_on_triangle(px, py, pz, a, b, c):
-    """Closest point of triangle abc to p, its barycentric weights and its feature.
-
-    Ericson, Real-Time Collision Detection §5.1.5. Feature: 0 face, 1/2/3 edge
-    ab/bc/ca, 4/5/6 vertex a/b/c. Returns (qx, qy, qz, la, lb, lc, feature).
-    """
-    abx = b[0] - a[0]; aby = b[1] - a[1]; abz = b[2] - a[2]
-    acx = c[0] - a[0]; acy = c[1] - a[1]; acz = c[2] - a[2]
-    apx = px - a[0]; apy = py - a[1]; apz = pz - a[2]
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2], 1.0, 0.0, 0.0, 4
-    bpx = px - b[0]; bpy = py - b[1]; bpz = pz - b[2]
-    d3 = abx * bpx + aby * bpy + abz * bpz
-    d4 = acx * bpx + acy * bpy + acz * bpz
-    if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2], 0.0, 1.0, 0.0, 5
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        v = d1 / (d1 - d3)
-        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1.0 - v, v, 0.0, 1
-    cpx = px - c[0]; cpy = py - c[1]; cpz = pz - c[2]
-    d5 = abx * cpx + aby * cpy + abz * cpz
-    d6 = acx * cpx + acy * cpy + acz * cpz
-    if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2], 0.0, 0.0, 1.0, 6
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        w = d2 / (d2 - d6)
-        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 1.0 - w, 0.0, w, 3
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
-                0.0, 1.0 - w, w, 2)
-    denom = 1.0 / (va + vb + vc)
-    v = vb * denom
-    w = vc * denom
-    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w,
-            1.0 - v - w, v, w, 0)
 
 
 @njit(cache=True)

@@ -20,13 +20,10 @@ barycentric coordinates of the closest point (−λ_a F, DESIGN.md §5).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .contact_laws import contact_force, linear_normal_stiffness, released_energy
-from .neighbors import closest_point_on_triangle
 
-BLOCK = 256
-N_ENERGY = 6  # work in, e_normal, e_tangential, e_rolling, friction, damping
 
 
 class PlaneWall:
@@ -163,76 +160,62 @@ def _edge_ids(triangles):
     return inverse.reshape(-1, 3).astype(np.int64), int(inverse.max()) + 1
 
 
-@njit(parallel=True, cache=True)
-def plane_wall_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_owned, young, pair_params,
-                        wall_point, wall_normal, wall_vel, wall_mat, history, wall_fn,
-                        force, torque, block_wall_force, block_energy):
-    """Sphere–plane contacts (DESIGN.md §2 geometry with the wall as body j): the dense
-    reference kernel; the engine runs the sparse one in :mod:`de_domain.fused`.
-
-    Adds the force/torque on each sphere; stores the normal force per (sphere, wall)
-    in ``wall_fn``; per-block sums of the force on each wall and of the energy terms
-    (summed later in block order: deterministic for any thread count).
-    """
-    n_walls = wall_point.shape[0]
-    n_blocks = (n_owned + BLOCK - 1) // BLOCK
-    for b in prange(n_blocks):
-        for w in range(n_walls):
-            for d in range(3):
-                block_wall_force[b, w, d] = 0.0
-        for k in range(N_ENERGY):
-            block_energy[b, k] = 0.0
-        for i in range(b * BLOCK, min((b + 1) * BLOCK, n_owned)):
-            r = radius[i]
-            for w in range(n_walls):
-                dist = 0.0
-                for d in range(3):
-                    dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
-                overlap = r - dist
-                params = pair_params[material[i], wall_mat[w]]
-                k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
-                h = history[i, w]
-                if overlap <= 0.0:
-                    if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
-                        block_energy[b, 4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2],
-                                                              h[3], h[4], h[5])
-                        h[:] = 0.0
-                    wall_fn[i, w] = 0.0
-                    continue
-                nx = -wall_normal[w, 0]
-                ny = -wall_normal[w, 1]
-                nz = -wall_normal[w, 2]
-                arm = r - 0.5 * overlap
-                # velocity of i's contact point: v + ω × (arm n)
-                vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
-                vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
-                vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
-                dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-                res = contact_force(law, params, nx, ny, nz, overlap,
-                                    wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
-                                    -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
-                                    k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
-                fx, fy, fz = res[0], res[1], res[2]
-                h[0] = res[3]; h[1] = res[4]; h[2] = res[5]
-                h[3] = res[6]; h[4] = res[7]; h[5] = res[8]
-                wall_fn[i, w] = -(fx * nx + fy * ny + fz * nz)
-                force[i, 0] += fx
-                force[i, 1] += fy
-                force[i, 2] += fz
-                torque[i, 0] += arm * (ny * fz - nz * fy) + res[6]
-                torque[i, 1] += arm * (nz * fx - nx * fz) + res[7]
-                torque[i, 2] += arm * (nx * fy - ny * fx) + res[8]
-                block_wall_force[b, w, 0] -= fx
-                block_wall_force[b, w, 1] -= fy
-                block_wall_force[b, w, 2] -= fz
-                block_energy[b, 0] += (fx * wall_vel[w, 0] + fy * wall_vel[w, 1] + fz * wall_vel[w, 2]) * dt
-                for k in range(5):
-                    block_energy[b, k + 1] += res[9 + k]
+@njit(cache=True)
+def point_triangle_distance2(px, py, pz, a, b, c):
+    """Squared distance from a point to triangle abc (Ericson, RTCD §5.1.5)."""
+    q = closest_point_on_triangle(px, py, pz, a, b, c)
+    return (q[0] - px) ** 2 + (q[1] - py) ** 2 + (q[2] - pz) ** 2
 
 
 @njit(cache=True)
-def _keep_facet_contact(i, s, tri, feature, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
-    """Deduplication rule of the module docstring for candidate ``s`` of sphere ``i``."""
+def closest_point_on_triangle(px, py, pz, a, b, c):
+    """Closest point of triangle abc to p, its barycentric weights and its feature.
+
+    Ericson, Real-Time Collision Detection §5.1.5. Feature: 0 face, 1/2/3 edge
+    ab/bc/ca, 4/5/6 vertex a/b/c. Returns (qx, qy, qz, la, lb, lc, feature).
+    """
+    abx = b[0] - a[0]; aby = b[1] - a[1]; abz = b[2] - a[2]
+    acx = c[0] - a[0]; acy = c[1] - a[1]; acz = c[2] - a[2]
+    apx = px - a[0]; apy = py - a[1]; apz = pz - a[2]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a[0], a[1], a[2], 1.0, 0.0, 0.0, 4
+    bpx = px - b[0]; bpy = py - b[1]; bpz = pz - b[2]
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:
+        return b[0], b[1], b[2], 0.0, 1.0, 0.0, 5
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1.0 - v, v, 0.0, 1
+    cpx = px - c[0]; cpy = py - c[1]; cpz = pz - c[2]
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:
+        return c[0], c[1], c[2], 0.0, 0.0, 1.0, 6
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 1.0 - w, 0.0, w, 3
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
+                0.0, 1.0 - w, w, 2)
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w,
+            1.0 - v - w, v, w, 0)
+
+
+
+@njit(cache=True)
+def _keep_facet_contact(i, k, s, tri, feature, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
+    """Deduplication rule of the module docstring for candidate ``s`` of sphere ``i``
+    (array index ``i``; its candidates are ``f_start[k]:f_start[k + 1]``)."""
     if feature == 0:
         return True
     if feature <= 3:
@@ -242,7 +225,7 @@ def _keep_facet_contact(i, s, tri, feature, pos, radius, vertices, triangles, tr
         edge = -1
         vertex = triangles[tri, feature - 4]
     r2 = radius[i] * radius[i]
-    for s2 in range(f_start[i], f_start[i + 1]):
+    for s2 in range(f_start[k], f_start[k + 1]):
         if s2 == s:
             continue
         t2 = f_tri[s2]
@@ -267,119 +250,115 @@ def _keep_facet_contact(i, s, tri, feature, pos, radius, vertices, triangles, tr
 
 
 @njit(cache=True)
-def _facet_candidate_active(i, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
+def _facet_candidate_active(i, k, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
     t = f_tri[s]
     q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t, 0]],
                                   vertices[triangles[t, 1]], vertices[triangles[t, 2]])
     d2 = (q[0] - pos[i, 0]) ** 2 + (q[1] - pos[i, 1]) ** 2 + (q[2] - pos[i, 2]) ** 2
     if d2 >= radius[i] * radius[i]:
         return False
-    return _keep_facet_contact(i, s, t, q[6], pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
-
-
-@njit(parallel=True, cache=True)
-def facet_contacts(law, dt, pos, vel, accel, angvel, radius, mass, material, n_owned, young, pair_params,
-                   vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, history,
-                   active, force, torque, cand_force, cand_lambda, block_energy):
-    """Sphere–triangle contacts (closest point: face, edge or vertex; deduplicated).
-
-    Per sphere: (1) which candidates are in contact; (2) a new contact on a mesh
-    takes over the history of a contact on the same mesh that has just ended (a
-    sphere rolling or sliding across a shared edge keeps its tangential spring);
-    (3) forces. Adds force/torque on the spheres; ``cand_force`` (force on the
-    sphere, zero if inactive) and ``cand_lambda`` (barycentric weights) per
-    candidate feed the vertex-force split done serially in :func:`facet_vertex_forces`.
-    """
-    n_blocks = (n_owned + BLOCK - 1) // BLOCK
-    for b in prange(n_blocks):
-        for k in range(N_ENERGY):
-            block_energy[b, k] = 0.0
-        for i in range(b * BLOCK, min((b + 1) * BLOCK, n_owned)):
-            r = radius[i]
-            s0 = f_start[i]
-            s1 = f_start[i + 1]
-            for s in range(s0, s1):
-                active[s] = _facet_candidate_active(i, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
-            for s in range(s0, s1):
-                if not active[s] or np.any(history[s] != 0.0):
-                    continue
-                for s2 in range(s0, s1):
-                    if not active[s2] and tri_mesh[f_tri[s2]] == tri_mesh[f_tri[s]] and np.any(history[s2] != 0.0):
-                        history[s, :] = history[s2, :]
-                        history[s2, :] = 0.0
-                        break
-            for s in range(s0, s1):
-                t = f_tri[s]
-                h = history[s]
-                params = pair_params[material[i], tri_mat[t]]
-                k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
-                if not active[s]:
-                    if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
-                        block_energy[b, 4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2],
-                                                              h[3], h[4], h[5])
-                        h[:] = 0.0
-                    cand_force[s, :] = 0.0
-                    continue
-                a = vertices[triangles[t, 0]]
-                bb = vertices[triangles[t, 1]]
-                c = vertices[triangles[t, 2]]
-                q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], a, bb, c)
-                dx = q[0] - pos[i, 0]
-                dy = q[1] - pos[i, 1]
-                dz = q[2] - pos[i, 2]
-                dist = np.sqrt(dx * dx + dy * dy + dz * dz)
-                overlap = r - dist
-                if dist > 0.0:
-                    nx = dx / dist
-                    ny = dy / dist
-                    nz = dz / dist
-                else:  # centre on the triangle: use the face normal
-                    ux = bb[0] - a[0]; uy = bb[1] - a[1]; uz = bb[2] - a[2]
-                    wx = c[0] - a[0]; wy = c[1] - a[1]; wz = c[2] - a[2]
-                    nx = uy * wz - uz * wy
-                    ny = uz * wx - ux * wz
-                    nz = ux * wy - uy * wx
-                    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
-                    nx /= norm
-                    ny /= norm
-                    nz /= norm
-                la, lb, lc = q[3], q[4], q[5]
-                va = vertex_vel[triangles[t, 0]]
-                vb = vertex_vel[triangles[t, 1]]
-                vc = vertex_vel[triangles[t, 2]]
-                vfx = la * va[0] + lb * vb[0] + lc * vc[0]
-                vfy = la * va[1] + lb * vb[1] + lc * vc[1]
-                vfz = la * va[2] + lb * vb[2] + lc * vc[2]
-                arm = r - 0.5 * overlap
-                vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
-                vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
-                vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
-                dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-                res = contact_force(law, params, nx, ny, nz, overlap, vfx - vcx, vfy - vcy, vfz - vcz, dvn,
-                                    -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
-                                    k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
-                fx, fy, fz = res[0], res[1], res[2]
-                h[0] = res[3]; h[1] = res[4]; h[2] = res[5]
-                h[3] = res[6]; h[4] = res[7]; h[5] = res[8]
-                cand_force[s, 0] = fx
-                cand_force[s, 1] = fy
-                cand_force[s, 2] = fz
-                cand_lambda[s, 0] = la
-                cand_lambda[s, 1] = lb
-                cand_lambda[s, 2] = lc
-                force[i, 0] += fx
-                force[i, 1] += fy
-                force[i, 2] += fz
-                torque[i, 0] += arm * (ny * fz - nz * fy) + res[6]
-                torque[i, 1] += arm * (nz * fx - nx * fz) + res[7]
-                torque[i, 2] += arm * (nx * fy - ny * fx) + res[8]
-                block_energy[b, 0] += (fx * vfx + fy * vfy + fz * vfz) * dt
-                for k in range(5):
-                    block_energy[b, k + 1] += res[9 + k]
+    return _keep_facet_contact(i, k, s, t, q[6], pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
 
 
 @njit(cache=True)
-def facet_vertex_forces(triangles, f_start, f_tri, cand_force, cand_lambda, vertex_force):
+def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
+                      vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, history,
+                      active, cand_force, cand_lambda, sums, energy):
+    """Sphere–triangle contacts of sphere ``i`` (closest point: face, edge or vertex;
+    deduplicated), candidates ``f_start[k]:f_start[k + 1]`` in triangle order.
+
+    (1) which candidates are in contact; (2) a new contact on a mesh takes over the
+    history of a contact on the same mesh that has just ended (a sphere rolling or
+    sliding across a shared edge keeps its tangential spring); (3) forces, added in
+    candidate order to ``sums`` (force 3, torque 3). ``cand_force`` (force on the
+    sphere, zero if inactive) and ``cand_lambda`` (barycentric weights of the closest
+    point) feed :func:`facet_vertex_forces`. ``energy`` += work of the facets on the
+    sphere, e_normal, e_tangential, e_rolling, friction, damping of this step.
+    """
+    r = radius[i]
+    s0 = f_start[k]
+    s1 = f_start[k + 1]
+    for s in range(s0, s1):
+        active[s] = _facet_candidate_active(i, k, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
+    for s in range(s0, s1):
+        if not active[s] or np.any(history[s] != 0.0):
+            continue
+        for s2 in range(s0, s1):
+            if not active[s2] and tri_mesh[f_tri[s2]] == tri_mesh[f_tri[s]] and np.any(history[s2] != 0.0):
+                history[s, :] = history[s2, :]
+                history[s2, :] = 0.0
+                break
+    for s in range(s0, s1):
+        t = f_tri[s]
+        h = history[s]
+        params = pair_params[material[i], tri_mat[t]]
+        k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
+        if not active[s]:
+            if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
+                energy[4] += released_energy(law, params, k_lin, r, r, h[0], h[1], h[2], h[3], h[4], h[5])
+                h[:] = 0.0
+            cand_force[s, :] = 0.0
+            continue
+        a = vertices[triangles[t, 0]]
+        bb = vertices[triangles[t, 1]]
+        c = vertices[triangles[t, 2]]
+        q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], a, bb, c)
+        dx = q[0] - pos[i, 0]
+        dy = q[1] - pos[i, 1]
+        dz = q[2] - pos[i, 2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        overlap = r - dist
+        if dist > 0.0:
+            nx = dx / dist
+            ny = dy / dist
+            nz = dz / dist
+        else:  # centre on the triangle: use the face normal
+            ux = bb[0] - a[0]; uy = bb[1] - a[1]; uz = bb[2] - a[2]
+            wx = c[0] - a[0]; wy = c[1] - a[1]; wz = c[2] - a[2]
+            nx = uy * wz - uz * wy
+            ny = uz * wx - ux * wz
+            nz = ux * wy - uy * wx
+            norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+            nx /= norm
+            ny /= norm
+            nz /= norm
+        la, lb, lc = q[3], q[4], q[5]
+        va = vertex_vel[triangles[t, 0]]
+        vb = vertex_vel[triangles[t, 1]]
+        vc = vertex_vel[triangles[t, 2]]
+        vfx = la * va[0] + lb * vb[0] + lc * vc[0]
+        vfy = la * va[1] + lb * vb[1] + lc * vc[1]
+        vfz = la * va[2] + lb * vb[2] + lc * vc[2]
+        arm = r - 0.5 * overlap
+        vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+        vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+        vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+        dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
+        res = contact_force(law, params, nx, ny, nz, overlap, vfx - vcx, vfy - vcy, vfz - vcz, dvn,
+                            -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
+                            k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
+        fx, fy, fz = res[0], res[1], res[2]
+        h[0] = res[3]; h[1] = res[4]; h[2] = res[5]
+        h[3] = res[6]; h[4] = res[7]; h[5] = res[8]
+        cand_force[s, 0] = fx
+        cand_force[s, 1] = fy
+        cand_force[s, 2] = fz
+        cand_lambda[s, 0] = la
+        cand_lambda[s, 1] = lb
+        cand_lambda[s, 2] = lc
+        sums[0] += fx
+        sums[1] += fy
+        sums[2] += fz
+        sums[3] += arm * (ny * fz - nz * fy) + res[6]
+        sums[4] += arm * (nz * fx - nx * fz) + res[7]
+        sums[5] += arm * (nx * fy - ny * fx) + res[8]
+        energy[0] += (fx * vfx + fy * vfy + fz * vfz) * dt
+        for m in range(5):
+            energy[m + 1] += res[9 + m]
+
+
+@njit(cache=True)
+def facet_vertex_forces(triangles, f_tri, cand_force, cand_lambda, vertex_force):
     """Force on the facet vertices: −λ_a F per active candidate (serial, fixed order)."""
     vertex_force[:, :] = 0.0
     for s in range(f_tri.size):
