@@ -126,6 +126,7 @@ class ProgressLine:
         self.last = now
         done = step - self.first
         rate = done / max(now - self.t0, 1e-9)
+        self.total = max(self.total, step)  # an estimated total may be passed
         eta = (self.total - step) / rate if rate > 0 else float("inf")
         eta_s = time.strftime("%H:%M:%S", time.gmtime(eta)) if eta != float("inf") else "--:--:--"
         say(f"[{self.label}] step {step}/{self.total} ({100.0 * step / self.total:5.1f}%)  "

@@ -17,7 +17,7 @@ side walls, a rough bottom and a rough compaction plate on top:
   layer starts. The number of layers follows from the target: a cloud may hold at most
   ``cloud_solid_fraction`` of solids over a generation height H, so
   N = ⌈V_s / (cloud_solid_fraction · L² H)⌉ = ⌈1 / ((1 + e) cloud_solid_fraction)⌉,
-  capped so that a layer is at least two of the largest grains thick.
+  capped so that a layer is at least one of the largest grains thick.
   If the plate stress exceeds ``plate_stress_limit`` before the plate reaches z_k, the
   particle friction is halved (down to 0) and the engine rebuilt from the current state,
   so dense targets stay reachable (YADE's "compaction friction" idea).
@@ -109,10 +109,10 @@ def solid_volume_for(void_ratio, volume):
 def layer_count(void_ratio, cloud_solid_fraction, height=None, d_max=None):
     """N = ⌈1 / ((1 + e) · cloud_solid_fraction)⌉: each layer's cloud fits in a
     generation height equal to the specimen height (module docstring); capped so that a
-    layer is at least two of the largest grains thick, N ≤ ⌊H / (2 d_max)⌋."""
+    layer is at least one of the largest grains thick, N ≤ ⌊H / d_max⌋."""
     n = max(1, math.ceil(1.0 / ((1.0 + void_ratio) * cloud_solid_fraction) - 1e-9))
     if height is not None and d_max is not None:
-        n = min(n, max(1, int(height // (2.0 * d_max))))
+        n = min(n, max(1, int(height // d_max)))
     return n
 
 

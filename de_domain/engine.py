@@ -338,6 +338,13 @@ class Engine:
         out[nl.w_particle, nl.w_idx] = nl.w_fn
         return out
 
+    def wall_contact_particles(self, wall_index):
+        """Indices of the particles touching plane wall ``wall_index`` in the last step
+        (a light subset of :meth:`contacts`)."""
+        nl = self.neighbors
+        live = (nl.w_fn > 0.0) & (nl.w_idx == wall_index)
+        return np.sort(nl.w_particle[live].astype(np.int64))
+
     def memory_bytes(self):
         """nbytes of every per-particle and per-contact array the engine holds, by name."""
         out = {f"particles.{k}": v.nbytes for k, v in self.particles.arrays().items()}

@@ -17,7 +17,9 @@ The run, top to bottom:
    values averaged over the steps since the previous row.
    The servo is the PFC-style proportional law of ``cosim.lab.shear_box.servo_velocity``
    plus a small integral term (``servo_integral``), so σ_n does not lag while the
-   specimen dilates or contracts at a steady rate.
+   specimen dilates or contracts at a steady rate. It updates the plate velocity every
+   ``servo_interval`` steps (one compiled DEM run in between), with Δt × that interval
+   in its law; CSV values are averaged over the updates since the previous row.
 5. **Report** — ``summary.json``/``summary.txt`` (peak and residual τ/σ_n and friction
    angles, volume change, inertial number, servo error), PNG plots.
 
@@ -179,6 +181,7 @@ class ShearTest:
         self.height0 = height
         self.x0 = self.upper.vertices[:, 0].copy()
         self.stiffness = 0.0
+        self.stiffness_step = None
         self.v_integral = 0.0
         self.shear_velocity = 0.0
 
@@ -223,24 +226,26 @@ class ShearTest:
     # ---------------------------------------------------------------- servo step
     def update_stiffness(self):
         from cosim.lab.shear_box import plate_contact_stiffness
-        self.stiffness = plate_contact_stiffness(self.engine.contacts(), 1, self.engine.particles.radius,
+        self.stiffness = plate_contact_stiffness(self.engine.wall_contact_particles(1), self.engine.particles.radius,
                                                  self.young_grain, self.young_plate)
 
     def step(self, target):
-        """One DEM step with the plate velocity from the servo law (σ of the last step)."""
+        """``servo_interval`` DEM steps with the plate velocity from the servo law (σ of
+        the last step); the contact stiffness of the plate is refreshed every ≥ 25 steps."""
         from cosim.lab.shear_box import servo_velocity
         ds = self.ds
-        if self.engine.step_count % 25 == 0:
+        if self.stiffness_step is None or self.engine.step_count - self.stiffness_step >= 25:
             self.update_stiffness()
-        vz = servo_velocity(self.normal_stress(), target, self.area(), self.stiffness, self.engine.dt,
-                            ds.servo_gain, ds.servo_max_velocity)
+            self.stiffness_step = self.engine.step_count
+        vz = servo_velocity(self.normal_stress(), target, self.area(), self.stiffness,
+                            self.engine.dt * ds.servo_interval, ds.servo_gain, ds.servo_max_velocity)
         if self.stiffness > 0.0:  # integral action: no steady lag while the specimen dilates or contracts
             self.v_integral = float(np.clip(self.v_integral + ds.servo_integral * vz,
                                             -ds.servo_max_velocity, ds.servo_max_velocity))
         vz = float(np.clip(vz + self.v_integral, -ds.servo_max_velocity, ds.servo_max_velocity))
         self.plate.velocity = np.array([self.shear_velocity, 0.0, vz])
         self.upper.velocity = np.array([self.shear_velocity, 0.0, 0.0])
-        self.engine.step()
+        self.engine.run(ds.servo_interval)
 
     # ---------------------------------------------------------------- 3. consolidation
     def consolidate(self, log):
@@ -248,11 +253,14 @@ class ShearTest:
         ds = self.ds
         target = ds.normal_stress
         window = []
-        for n in range(1, ds.max_consolidation_steps + 1):
+        per_check = max(1, 100 // ds.servo_interval)  # updates per check (~100 steps)
+        n = 0
+        while n < ds.max_consolidation_steps:
             self.step(target)
+            n += ds.servo_interval
             window.append(self.normal_stress())
-            if n % 100 == 0:
-                mean = float(np.mean(window[-100:]))
+            if len(window) % per_check == 0:
+                mean = float(np.mean(window[-per_check:]))
                 if abs(mean - target) < ds.consolidation_tolerance * target:
                     uf = unbalanced_force_ratio(self.engine)
                     if uf < ds.consolidation_unbalanced_force:
@@ -261,7 +269,7 @@ class ShearTest:
                         return n
         log(f"consolidation stopped after {ds.max_consolidation_steps} steps: σ_n = {self.normal_stress():.4g} Pa, "
             f"unbalanced force {unbalanced_force_ratio(self.engine):.3g}")
-        return ds.max_consolidation_steps
+        return n
 
 
 def _record(test, sums, n, z0):

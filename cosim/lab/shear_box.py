@@ -106,11 +106,10 @@ def servo_velocity(stress, target, area, stiffness, dt, gain, max_velocity):
     return float(np.clip(v, -max_velocity, max_velocity))
 
 
-def plate_contact_stiffness(contacts, wall_index, radius, young_grain, young_plate):
-    """Σ k_n of the contacts of plane wall ``wall_index`` (linear law, DESIGN §2:
+def plate_contact_stiffness(particles, radius, young_grain, young_plate):
+    """Σ k_n of the plate's contacts with ``particles`` (linear law, DESIGN §2:
     per-body springs k = 4 E r in series, the wall a mirror sphere of radius r)."""
-    sel = contacts["wall_index"] == wall_index
-    r = radius[contacts["wall_particle"][sel]]
+    r = radius[particles]
     k_i = 4.0 * young_grain * r
     k_w = 4.0 * young_plate * r
     return float(np.sum(k_i * k_w / (k_i + k_w)))
