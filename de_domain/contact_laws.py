@@ -30,7 +30,7 @@ HERTZ = 1
 LAWS = {"linear": LINEAR, "hertz": HERTZ}
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def linear_normal_stiffness(young_i, radius_i, young_j, radius_j):
     """k_n = k_i k_j/(k_i + k_j) with k = 4 E r (thesis Eq. 3.28–3.30): 2 E r* for equal E."""
     k_i = 4.0 * young_i * radius_i
@@ -38,7 +38,7 @@ def linear_normal_stiffness(young_i, radius_i, young_j, radius_j):
     return k_i * k_j / (k_i + k_j)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
     """Elastic normal force, tangent normal stiffness, tangential stiffness, stored energy.
 
@@ -55,7 +55,7 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
     return f, k_linear, k_linear / params[PAIR_STIFFNESS_RATIO], 0.5 * f * overlap
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
                   k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
     """One contact step of DESIGN.md §2.
@@ -163,7 +163,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
             e_normal, e_tangential, e_rolling, friction_dissipation, damping_dissipation)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def released_energy(law, params, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, mry, mrz):
     """Elastic energy left in the tangential/rolling springs when a contact opens.
 

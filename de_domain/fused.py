@@ -61,7 +61,7 @@ N_BOOKS = 23          # state 6, acc 5, first 5, last 5, initial_total, initiali
 
 
 # --------------------------------------------------------------------------- building
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell, perm,
                         n_active, i_start, j_out, fill):
     """Half list (partners j > i) of particle perm[s], per perm position s; sorted by j."""
@@ -102,7 +102,7 @@ def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, par
                 j_out[m + 1] = v
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def build_j_side(perm, iperm, i_start, pair_js):
     """CSR over perm positions of the pairs in which the particle is j, ascending i."""
     n = perm.size
@@ -132,7 +132,7 @@ def morton_order(particle_cell, dims):
     return np.argsort(key, kind="stable").astype(np.int32)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def pair_i_of(perm, i_start):
     out = np.empty(i_start[-1], np.int32)
     for s in range(perm.size):
@@ -141,7 +141,7 @@ def pair_i_of(perm, i_start):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, wall_normal):
     """Plane walls within r + skin of each owned particle (CSR over perm positions),
     and the candidates in ascending particle order (for the wall-force totals)."""
@@ -184,13 +184,14 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
 
 
 # --------------------------------------------------------------------------- stepping
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
                 perm, i_start, pair_js, ht, hr, rolling, pair_fc, pair_ov, force, torque, e1):
     """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK).
 
     ``pair_fc[p]`` = force on i (3), n × F (3); ``pair_ov[p]`` = overlap (NaN right
-    after a rebuild: unknown). History: tangential spring ``ht[p]``; rolling moment
+    after a rebuild: unknown; −1 for a pair that was apart in this and the last step,
+    whose distance is then not taken). History: tangential spring ``ht[p]``; rolling moment
     ``hr[p]`` only if ``rolling`` (any pair with β_r > 0; else it is identically
     zero and not stored). The i-side part of each particle's force/torque sum
     (ascending j) is written to ``force``/``torque``; region 2 continues it with the
@@ -212,13 +213,17 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             dx = pos[j, 0] - pos[i, 0]
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
-            dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+            d2 = dx * dx + dy * dy + dz * dz
             rj = radius[j]
-            overlap = ri + rj - dist
             previous = pair_ov[p]
+            if previous <= 0.0 and d2 >= (ri + rj) * (ri + rj):
+                pair_ov[p] = -1.0  # apart now and last step: history and pair_fc[p] are already zero
+                continue
+            dist = np.sqrt(d2)
+            overlap = ri + rj - dist
             pair_ov[p] = overlap
             if overlap <= 0.0:
-                if previous <= 0.0:  # open last step too: history and pair_out[p, :6] are already zero
+                if previous <= 0.0:
                     continue
                 mrx = 0.0; mry = 0.0; mrz = 0.0
                 if rolling:
@@ -293,7 +298,7 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
     e1[b, 4] = dm
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov, force, torque):
     """Continue the i-side sums of region 1 with the j-side pairs (ascending i): −F and
     (a_j n) × F − M_r with a_j = r_j − δ/2, as the pair kernel's torques. Without
@@ -319,7 +324,7 @@ def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov
     return fx, fy, fz, tx, ty, tz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
@@ -470,7 +475,7 @@ def _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping
     dmax[b] = d2max
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def record_energy(books, pe, we, ie):
     """Energy books of one step (Engine.energy): state at tⁿ, increments accumulated."""
     state = (ie[0], ie[1], ie[2], pe[0] + we[1], pe[1] + we[2], pe[2] + we[3])
@@ -490,7 +495,7 @@ def record_energy(books, pe, we, ie):
         books[22] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
     """Force of the particles on each wall, summed per block of ``block`` particles in
     particle order, then over the blocks (the order of walls.plane_wall_contacts)."""
@@ -511,7 +516,7 @@ def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
     return total
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def advance(nsteps, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
             prescribed_velocity, force, torque, young, pair_params,

@@ -160,14 +160,14 @@ def _edge_ids(triangles):
     return inverse.reshape(-1, 3).astype(np.int64), int(inverse.max()) + 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def point_triangle_distance2(px, py, pz, a, b, c):
     """Squared distance from a point to triangle abc (Ericson, RTCD §5.1.5)."""
     q = closest_point_on_triangle(px, py, pz, a, b, c)
     return (q[0] - px) ** 2 + (q[1] - py) ** 2 + (q[2] - pz) ** 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def closest_point_on_triangle(px, py, pz, a, b, c):
     """Closest point of triangle abc to p, its barycentric weights and its feature.
 
@@ -212,7 +212,7 @@ def closest_point_on_triangle(px, py, pz, a, b, c):
 
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _keep_facet_contact(i, k, s, tri, feature, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
     """Deduplication rule of the module docstring for candidate ``s`` of sphere ``i``
     (array index ``i``; its candidates are ``f_start[k]:f_start[k + 1]``)."""
@@ -249,7 +249,7 @@ def _keep_facet_contact(i, k, s, tri, feature, pos, radius, vertices, triangles,
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _facet_candidate_active(i, k, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
     t = f_tri[s]
     q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t, 0]],
@@ -260,7 +260,7 @@ def _facet_candidate_active(i, k, s, pos, radius, vertices, triangles, tri_edges
     return _keep_facet_contact(i, k, s, t, q[6], pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
                       vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, history,
                       active, cand_force, cand_lambda, sums, energy):
@@ -357,7 +357,7 @@ def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, mate
             energy[m + 1] += res[9 + m]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def facet_vertex_forces(triangles, f_tri, cand_force, cand_lambda, vertex_force):
     """Force on the facet vertices: −λ_a F per active candidate (serial, fixed order)."""
     vertex_force[:, :] = 0.0
