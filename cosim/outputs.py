@@ -66,6 +66,15 @@ def atomic_write_text(path, text):
     os.replace(tmp, path)
 
 
+def save_engine_checkpoint(engine, path):
+    """``engine.save_checkpoint`` to a temporary file, then rename: a crash never leaves
+    a broken checkpoint."""
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    engine.save_checkpoint(tmp)
+    os.replace(tmp, path)
+
+
 def write_run_metadata(out_dir, case_path, resolved, seed):
     """Write ``case.resolved.toml`` (re-runnable) and ``run_info.json`` next to the outputs."""
     if not is_root():

@@ -12,7 +12,8 @@ import numpy as np
 
 from cosim.case import resolve_path
 from cosim.errors import CaseError
-from cosim.outputs import CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, say, write_run_metadata
+from cosim.outputs import (CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, save_engine_checkpoint, say,
+                           write_run_metadata)
 
 CHECKPOINT = "checkpoint.npz"
 PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint clock
@@ -121,10 +122,10 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
             record()
         progress.update(engine.step_count, engine.time)
         if time.perf_counter() - last_checkpoint > case.output.checkpoint_interval:
-            _checkpoint(engine, checkpoint)
+            save_engine_checkpoint(engine, checkpoint)
             last_checkpoint = time.perf_counter()
     progress.update(engine.step_count, engine.time, force=True)
-    _checkpoint(engine, checkpoint)
+    save_engine_checkpoint(engine, checkpoint)
     series.close()
     from de_domain.packing import save_packing
     p = engine.particles
@@ -141,9 +142,3 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     say(f"[{case.case.name}] done: t = {engine.time:.4e} s, kinetic energy {e['kinetic']:.3e} J, "
         f"energy balance residual {e['residual']:.3e} J ({100 * abs(e['residual']) / scale:.2f} % of work + dissipation)")
 
-
-def _checkpoint(engine, path):
-    """Write to a temporary file and rename, so a crash never leaves a broken checkpoint."""
-    tmp = path.with_name("checkpoint.tmp.npz")
-    engine.save_checkpoint(tmp)
-    tmp.replace(path)

@@ -46,8 +46,11 @@ import numpy as np
 
 from cosim.case import resolve_path
 from cosim.errors import CaseError
-from cosim.outputs import CsvSeries, ProgressLine, atomic_write_text, is_root, mpi_comm, say, write_run_metadata
+from cosim.outputs import (CsvSeries, ProgressLine, atomic_write_text, is_root, mpi_comm, save_engine_checkpoint, say,
+                           write_run_metadata)
 
+CHECKPOINT = "checkpoint.npz"
+SHEAR_STATE = "shear_state.json"
 COLUMNS = ["time", "shear_displacement", "shear_stress", "normal_stress", "vertical_displacement",
            "void_ratio", "void_ratio_sphere_045h", "void_ratio_sphere_020h", "shear_stress_lower",
            "lw_normal_stress", "lw_shear_stress", "unbalanced_force_ratio", "coordination_number",
@@ -82,8 +85,10 @@ def prepare(case, case_path):
             raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
         pos, radii, _, _ = built["packing"]
         L = ds.box_length
-        if np.any(pos[:, :2] - radii[:, None] < -1e-9) or np.any(pos[:, :2] + radii[:, None] > L + 1e-9):
-            raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {L} m x {L} m box (x, y in [0, L])")
+        slack = 0.05 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
+        if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > L + slack):
+            raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {L} m x {L} m box "
+                            "(x, y in [0, L], overlapping a side by at most 5 % of the radius)")
     else:
         try:
             built["curve"] = curve_of(sp)
@@ -131,7 +136,7 @@ def make_specimen(case, case_path, built, out_dir, cache=None):
     settings = GenerationSettings(
         box_length=L, height=H, void_ratio=sp.void_ratio, sand=mats[sand], wall=mats[wall], plate=mats[plate],
         friction=sp.deposition_friction, density_scale=sp.density_scale, gravity=tuple(case.dem.gravity),
-        local_damping=max(case.dem.local_damping, 0.5), safety_factor=case.time.safety_factor,
+        local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
         contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
         plate_stress_limit=sp.plate_stress_limit, layers=sp.layers, undercompaction=sp.undercompaction,
         cloud_solid_fraction=sp.cloud_solid_fraction, max_steps_per_layer=sp.max_steps_per_layer,
@@ -156,8 +161,12 @@ def make_specimen(case, case_path, built, out_dir, cache=None):
 class ShearTest:
     """Engine + split box + servo for one direct shear test (steps 2–4 of the module docstring)."""
 
-    def __init__(self, case, positions, radii, height):
-        from de_domain import Engine, FacetMesh, Particles, PlaneWall
+    SERVO_STATE = ("stiffness", "stiffness_step", "v_integral", "shear_velocity")
+
+    def __init__(self, case, engine, height, x0=None):
+        """``engine``: walls [bottom, top plate], facets [lower half, upper half] (see
+        :meth:`build`); ``height``: specimen height before consolidation; ``x0``: the
+        upper half's vertex x at zero shear (default: now)."""
         from cosim.lab.shear_box import ShearBoxGeometry, mass_median_diameter
         self.case = case
         ds = self.ds = case.direct_shear
@@ -166,24 +175,35 @@ class ShearTest:
         self.density = mats[sand].density
         self.L = ds.box_length
         self.geometry = ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
-        particles = Particles.from_spheres(positions, radii, np.full(len(radii), sand, np.int32), mats)
-        self.lower = FacetMesh(*self.geometry.lower_half(), material=wall)
-        self.upper = FacetMesh(*self.geometry.upper_half(), material=wall)
-        self.bottom = PlaneWall((0, 0, 0), (0, 0, 1), material=plate)
-        self.plate = PlaneWall((0, 0, height), (0, 0, -1), material=plate)
-        dem = case.dem
-        self.engine = Engine(particles, mats, walls=[self.bottom, self.plate], facets=[self.lower, self.upper],
-                             contact_law=dem.contact_law, gravity=dem.gravity, dt=case.time.dt,
-                             safety_factor=case.time.safety_factor, local_damping=dem.local_damping,
-                             viscous_damping=dem.viscous_damping)
+        self.engine = engine
+        self.bottom, self.plate = engine.walls
+        self.lower, self.upper = engine.facets
+        radii = engine.particles.radius
         self.solid_volume = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
         self.d50 = mass_median_diameter(radii)
         self.height0 = height
-        self.x0 = self.upper.vertices[:, 0].copy()
+        self.x0 = self.upper.vertices[:, 0].copy() if x0 is None else np.asarray(x0, float)
         self.stiffness = 0.0
         self.stiffness_step = None
         self.v_integral = 0.0
         self.shear_velocity = 0.0
+
+    @classmethod
+    def build(cls, case, positions, radii, height):
+        """The specimen in the split box (module docstring, step 2)."""
+        from de_domain import Engine, FacetMesh, Particles, PlaneWall
+        from cosim.lab.shear_box import ShearBoxGeometry
+        ds = case.direct_shear
+        mats, sand, wall, plate = materials(case)
+        geometry = ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
+        particles = Particles.from_spheres(positions, radii, np.full(len(radii), sand, np.int32), mats)
+        facets = [FacetMesh(*geometry.lower_half(), material=wall), FacetMesh(*geometry.upper_half(), material=wall)]
+        walls = [PlaneWall((0, 0, 0), (0, 0, 1), material=plate), PlaneWall((0, 0, height), (0, 0, -1), material=plate)]
+        dem = case.dem
+        engine = Engine(particles, mats, walls=walls, facets=facets, contact_law=dem.contact_law, gravity=dem.gravity,
+                        dt=case.time.dt, safety_factor=case.time.safety_factor, local_damping=dem.local_damping,
+                        viscous_damping=dem.viscous_damping)
+        return cls(case, engine, height)
 
     # ---------------------------------------------------------------- measurements
     @property
@@ -283,16 +303,40 @@ def _record(test, sums, n, z0):
 
 # --------------------------------------------------------------------------- the run
 def run(case, resolved, case_path, out_dir, resume=False, specimen_cache=None):
-    if resume:
-        raise CaseError(case_path, "--resume", True, "a direct_shear run cannot be resumed; run it again")
     out_dir = Path(out_dir)
+    if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / SHEAR_STATE).exists()):
+        raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
+                        "no shear checkpoint in the output folder (checkpoints start with the shearing); "
+                        "run without --resume")
     if is_root():
         built = prepare(case, case_path)
-        _run_root(case, resolved, case_path, out_dir, built, specimen_cache)
+        _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume)
     mpi_comm().Barrier()
 
 
-def _run_root(case, resolved, case_path, out_dir, built, specimen_cache):
+def _save_checkpoint(out_dir, test, loop):
+    """Engine checkpoint + the servo and loop state (JSON), both written to temporary
+    files and renamed; the JSON names the step it belongs to."""
+    state = {**{k: getattr(test, k) for k in ShearTest.SERVO_STATE}, **loop,
+             "x0": test.x0.tolist(), "height0": test.height0, "step": test.engine.step_count}
+    save_engine_checkpoint(test.engine, out_dir / CHECKPOINT)
+    atomic_write_text(out_dir / SHEAR_STATE, json.dumps(state, default=lambda x: x.item()))
+
+
+def _load_checkpoint(case, out_dir):
+    from de_domain import Engine
+    engine = Engine.load_checkpoint(out_dir / CHECKPOINT)
+    state = json.loads((out_dir / SHEAR_STATE).read_text())
+    if state["step"] != engine.step_count:
+        raise CaseError(out_dir / SHEAR_STATE, "step", state["step"],
+                        f"does not match the checkpoint (step {engine.step_count}); run without --resume")
+    test = ShearTest(case, engine, state["height0"], state["x0"])
+    for k in ShearTest.SERVO_STATE:
+        setattr(test, k, state[k])
+    return test, state
+
+
+def _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume=False):
     from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
     from cosim.lab.shear_report import plot_run, read_series, summarize
     name, ds = case.case.name, case.direct_shear
@@ -300,38 +344,47 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache):
     write_run_metadata(out_dir, case_path, resolved, case.case.seed)
     t_start = time.perf_counter()
 
-    # 1. specimen
-    positions, radii, height, specimen_info = make_specimen(case, case_path, built, out_dir, specimen_cache)
-
-    # 2. shear box
-    test = ShearTest(case, positions, radii, height)
-    engine = test.engine
-    log(f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
-        f"{engine.particles.n} grains (d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s")
-
-    # 3. consolidation
-    t0 = time.perf_counter()
-    consolidation_steps = test.consolidate(log)
-    e_consolidated = test.void_ratio()
-    z0 = float(test.plate.point[2])
+    if resume:
+        test, loop = _load_checkpoint(case, out_dir)
+        engine = test.engine
+        specimen_info = loop["specimen_info"]
+        log(f"resumed at step {engine.step_count}, δ = {test.displacement * 1e3:.3f} mm")
+    else:
+        # 1. specimen
+        positions, radii, height, specimen_info = make_specimen(case, case_path, built, out_dir, specimen_cache)
+        # 2. shear box
+        test = ShearTest.build(case, positions, radii, height)
+        engine = test.engine
+        log(f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
+            f"{engine.particles.n} grains (d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s")
+        # 3. consolidation
+        t_consolidation = time.perf_counter()
+        consolidation_steps = test.consolidate(log)
+        loop = {"specimen_info": specimen_info, "consolidation_steps": consolidation_steps,
+                "e_consolidated": test.void_ratio(), "z0": float(test.plate.point[2]), "next_row": 0.0,
+                "sums": [0.0, 0.0, 0.0], "n": 0, "servo_errors": [],
+                "wall_clock_shear_s": time.perf_counter() - t_consolidation, "next_frame": 0.0}
+    height, z0 = test.height0, loop["z0"]
 
     # 4. shearing
     v = ds.shear_velocity or velocity_for_inertial_number(ds.inertial_number, height, test.d50, test.density,
                                                           ds.normal_stress)
     inertial = inertial_number(v, height, test.d50, test.density, ds.normal_stress)
     # the ramp from 2 % of v over ramp_distance takes ln(50) ramp_distance / v
-    total_steps = int(math.ceil((ds.shear_distance + (math.log(50.0) - 1.0) * ds.ramp_distance) / (v * engine.dt)))
+    total_steps = loop["consolidation_steps"] + int(math.ceil(
+        (ds.shear_distance + (math.log(50.0) - 1.0) * ds.ramp_distance) / (v * engine.dt)))
     log(f"shearing at v = {v:.4g} m/s (inertial number I = {inertial:.2e}) to δ = {ds.shear_distance * 1e3:.2f} mm: "
-        f"about {total_steps} steps")
-    series = CsvSeries(out_dir / "series.csv", COLUMNS)
-    frames = _frames(case, out_dir)
-    frames(engine, 0)
-    progress = ProgressLine(name, engine.step_count + total_steps, case.output.progress_interval,
-                            first_step=engine.step_count)
+        f"about {total_steps - loop['consolidation_steps']} steps")
+    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None)
+    frames = _frames(case, out_dir, loop, engine.time if resume else None)
+    if not resume:
+        frames(engine, 0)
+    progress = ProgressLine(name, total_steps, case.output.progress_interval, first_step=engine.step_count)
     row_spacing = ds.shear_distance / ds.rows
-    next_row = 0.0
-    sums, n = np.zeros(3), 0
-    servo_errors = []
+    next_row, n, servo_errors = loop["next_row"], loop["n"], loop["servo_errors"]
+    sums = np.array(loop["sums"])
+    t0 = time.perf_counter()
+    last_checkpoint = t0
     while True:
         delta = test.displacement
         ramp = min(1.0, max(0.02, delta / ds.ramp_distance)) if ds.ramp_distance > 0 else 1.0
@@ -351,9 +404,15 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache):
         progress.update(engine.step_count, engine.time)
         if delta >= ds.shear_distance:
             break
+        if time.perf_counter() - last_checkpoint > case.output.checkpoint_interval:
+            loop.update(next_row=next_row, sums=sums.tolist(), n=n, servo_errors=servo_errors,
+                        wall_clock_shear_s=loop["wall_clock_shear_s"] + time.perf_counter() - t0)
+            t0 = last_checkpoint = time.perf_counter()
+            _save_checkpoint(out_dir, test, loop)
     progress.update(engine.step_count, engine.time, force=True)
     series.close()
-    shear_wall_clock = time.perf_counter() - t0
+    shear_wall_clock = loop["wall_clock_shear_s"] + time.perf_counter() - t0
+    consolidation_steps, e_consolidated = loop["consolidation_steps"], loop["e_consolidated"]
 
     # 5. report
     data = read_series(out_dir / "series.csv")
@@ -406,19 +465,19 @@ def summary_text(s):
     ]) + "\n"
 
 
-def _frames(case, out_dir, count=10):
-    """ParaView frames (particles + both box halves) at ``count`` points of the shear."""
+def _frames(case, out_dir, loop, resume_time=None, count=10):
+    """ParaView frames (particles + both box halves) at ``count`` points of the shear;
+    the next frame's δ is kept in ``loop["next_frame"]`` (checkpointed)."""
     if not case.output.vtk:
         return lambda engine, delta: None
     from de_domain.io import write_frame
     from cosim.outputs import PvdCollection
     (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
-    index = PvdCollection(Path(out_dir) / "particles.pvd")
+    index = PvdCollection(Path(out_dir) / "particles.pvd", resume_time)
     spacing = case.direct_shear.shear_distance / count
-    state = {"next": 0.0}
 
     def write(engine, delta):
-        if delta >= state["next"] - 1e-12:
+        if delta >= loop["next_frame"] - 1e-12:
             index.add(engine.time, write_frame(out_dir / "frames", engine, engine.step_count))
-            state["next"] += spacing
+            loop["next_frame"] += spacing
     return write

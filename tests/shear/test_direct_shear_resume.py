@@ -1,0 +1,57 @@
+"""A direct shear run killed while shearing resumes from its checkpoint and ends with
+the same CSV rows, to the last digit, as a run that was never interrupted."""
+import csv
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from test_direct_shear_run import MINI
+
+COSIM = Path(sys.executable).parent / "cosim"
+
+
+def cosim(*args):
+    return subprocess.run([str(COSIM), *args], capture_output=True, text=True, timeout=900)
+
+
+def rows(path):
+    with open(path, newline="") as f:
+        return list(csv.reader(f))
+
+
+def test_killed_shear_run_resumes_to_the_same_result(tmp_path):
+    case = tmp_path / "mini.toml"
+    case.write_text(MINI.format(name="mini", e=0.70, mu=0.3))
+    reference = tmp_path / "reference"
+    assert cosim("run", str(case), "--out", str(reference)).returncode == 0
+    # the same specimen from its file, sheared in a process that is killed mid-way
+    specimen = tmp_path / "specimen.npz"
+    shutil.copy(reference / "specimen.npz", specimen)
+    split = tmp_path / "split"
+    sets = ["--set", "specimen.source=file", "--set", f"specimen.file={specimen}",
+            "--set", "output.checkpoint_interval=0.5"]
+    proc = subprocess.Popen([str(COSIM), "run", str(case), "--out", str(split), *sets],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 600
+    while time.time() < deadline and proc.poll() is None:
+        if (split / "shear_state.json").exists() and len(rows(split / "series.csv")) > 6:
+            break
+        time.sleep(0.1)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    proc.kill()
+    proc.wait()
+    assert not (split / "summary.json").exists()
+    res = cosim("run", str(case), "--out", str(split), *sets, "--resume")
+    assert res.returncode == 0, res.stderr
+    assert "resumed at step" in res.stdout + res.stderr
+    assert rows(split / "series.csv") == rows(reference / "series.csv")
+
+
+def test_resume_without_a_shear_checkpoint_is_a_clear_error(tmp_path):
+    case = tmp_path / "mini.toml"
+    case.write_text(MINI.format(name="mini", e=0.70, mu=0.3))
+    res = cosim("run", str(case), "--out", str(tmp_path / "none"), "--resume")
+    assert res.returncode == 2
+    assert "no shear checkpoint" in res.stderr
