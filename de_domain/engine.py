@@ -106,9 +106,9 @@ class Engine:
         self._vertex_force = np.zeros((v_off, 3))
 
     def _allocate_pair_arrays(self, m):
-        """Per-pair results of the last step, in the neighbour list's storage order:
-        force on i, n × F (for the torques), overlap."""
-        self.pair_fc = np.zeros((m, 6))  # one record per pair: force on i (3), n × F (3)
+        """Per-pair results of the last step: the force and torque on j (rows in the
+        j-side order of ``neighbors.j_slot``), the overlap (list order)."""
+        self.j_rec = np.zeros((m, 6))  # per pair, in j-side order (neighbors.j_slot): force and torque on j
         self.pair_ov = np.full(m, np.nan)  # overlap; NaN: previous step unknown (see fused._pair_block)
         m_f = self.neighbors.f_tri.size
         self.facet_force = np.zeros((m_f, 3))
@@ -118,7 +118,7 @@ class Engine:
     @property
     def pair_force(self):
         """Force on i of each listed pair in the last step (zero when not in contact)."""
-        return self.pair_fc[:, 0:3]
+        return -self.j_rec[self.neighbors.j_slot, 0:3]
 
     @property
     def pair_overlap(self):
@@ -187,8 +187,8 @@ class Engine:
         ref_vertices = nl.ref_vertices if nl.ref_vertices is not None else vertices
         return ((has_constraints, nl.rolling, self.law, self.dt, self.gravity, self.local_damping,
                  self.viscous_damping, p.n_owned) + arrays
-                + (self.young, self.pair_params, perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_pairs, nl.ht, nl.hr,
-                   self.pair_fc, self.pair_ov, wall_point, wall_normal, wall_vel, wall_mat, nl.w_start, nl.w_idx,
+                + (self.young, self.pair_params, perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_slot, nl.ht, nl.hr,
+                   self.j_rec, self.pair_ov, wall_point, wall_normal, wall_vel, wall_mat, nl.w_start, nl.w_idx,
                    nl.w_hist, nl.w_fn, nl.w_force, nl.perm, vertices, vertex_vel, self._triangles,
                    self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start, nl.f_tri,
                    nl.facet_history, self.facet_active, self.facet_force, self.facet_lambda, self._vertex_force,
@@ -349,7 +349,7 @@ class Engine:
         """nbytes of every per-particle and per-contact array the engine holds, by name."""
         out = {f"particles.{k}": v.nbytes for k, v in self.particles.arrays().items()}
         out["acceleration"] = self.acceleration.nbytes
-        for k in ("pair_fc", "pair_ov", "facet_force", "facet_lambda", "facet_active"):
+        for k in ("j_rec", "pair_ov", "facet_force", "facet_lambda", "facet_active"):
             out[k] = getattr(self, k).nbytes
         out.update(self.neighbors.memory_bytes())
         p = self.particles
@@ -423,7 +423,7 @@ class Engine:
                 data[f"facet{k}_source_nodes"] = mesh.source_nodes
         for k, v in self.neighbors.state().items():
             data[f"nl_{k}"] = v
-        for name in ("pair_fc", "pair_ov", "facet_force", "facet_lambda", "gravity", "acceleration"):
+        for name in ("j_rec", "pair_ov", "facet_force", "facet_lambda", "gravity", "acceleration"):
             data[name] = getattr(self, name)
         data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
                                    self.time])
@@ -466,7 +466,7 @@ class Engine:
         if "nl_perm" in d:
             engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
         engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)
-        for name in ("pair_fc", "pair_ov", "facet_force", "facet_lambda", "acceleration"):
+        for name in ("j_rec", "pair_ov", "facet_force", "facet_lambda", "acceleration"):
             setattr(engine, name, d[name].copy())
         engine.time = float(time)
         engine.step_count = int(d["step_count"])

@@ -40,7 +40,8 @@ sorted copies); only the energy books are summed in block order.
 
 Storage (CSR over perm positions ``s``): pairs of particle ``perm[s]`` as i-side are
 ``i_start[s]:i_start[s+1]`` (partner ``pair_j``, sorted by index); its j-side pairs
-are ``j_pairs[j_start[s]:j_start[s+1]]`` (sorted by i). Plane-wall candidates
+are the slots ``j_start[s]:j_start[s+1]`` of ``j_rec`` (sorted by i; pair p writes
+its force and torque on j to slot ``j_slot[p]``). Plane-wall candidates
 (walls within r + skin at the build) are ``w_start[s]:w_start[s+1]`` with their
 own sparse history. Facet candidates are a CSR over the public particle index
 (``f_start``/``f_tri``, reached through ``orig[s]``).
@@ -104,21 +105,22 @@ def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, par
 
 @njit(cache=True, error_model="numpy")
 def build_j_side(perm, iperm, i_start, pair_js):
-    """CSR over perm positions of the pairs in which the particle is j, ascending i."""
+    """The j-side CSR over perm positions: slots ``j_start[s]:j_start[s+1]`` hold the
+    pairs in which particle perm[s] is j, by ascending i; ``j_slot[p]`` is pair p's slot."""
     n = perm.size
     counts = np.zeros(n + 1, np.int64)
     for p in range(pair_js.size):
         counts[pair_js[p] + 1] += 1
     j_start = np.cumsum(counts)
     fill = j_start[:-1].copy()
-    j_pairs = np.empty(pair_js.size, np.int32)
+    j_slot = np.empty(pair_js.size, np.int32)
     for i in range(n):
         s = iperm[i]
         for p in range(i_start[s], i_start[s + 1]):
             sj = pair_js[p]
-            j_pairs[fill[sj]] = p
+            j_slot[p] = fill[sj]
             fill[sj] += 1
-    return j_start, j_pairs
+    return j_start, j_slot
 
 
 def morton_order(particle_cell, dims):
@@ -186,10 +188,11 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
 # --------------------------------------------------------------------------- stepping
 @njit(cache=True, error_model="numpy")
 def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                perm, i_start, pair_js, ht, hr, rolling, pair_fc, pair_ov, force, torque, e1):
+                perm, i_start, pair_js, j_slot, ht, hr, rolling, j_rec, pair_ov, force, torque, e1):
     """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK).
 
-    ``pair_fc[p]`` = force on i (3), n × F (3); ``pair_ov[p]`` = overlap (NaN right
+    ``j_rec[j_slot[p]]`` = force (3) and torque (3) pair p puts on its j, written in
+    the j-side order that region 2 reads contiguously; ``pair_ov[p]`` = overlap (NaN right
     after a rebuild: unknown; −1 for a pair that was apart in this and the last step,
     whose distance is then not taken). History: tangential spring ``ht[p]``; rolling moment
     ``hr[p]`` only if ``rolling`` (any pair with β_r > 0; else it is identically
@@ -217,7 +220,7 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             rj = radius[j]
             previous = pair_ov[p]
             if previous <= 0.0 and d2 >= (ri + rj) * (ri + rj):
-                pair_ov[p] = -1.0  # apart now and last step: history and pair_fc[p] are already zero
+                pair_ov[p] = -1.0  # apart now and last step: history and j_rec are already zero
                 continue
             dist = np.sqrt(d2)
             overlap = ri + rj - dist
@@ -239,8 +242,9 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
                         ht[p, k] = 0.0
                         if rolling:
                             hr[p, k] = 0.0
+                q = j_slot[p]
                 for k in range(6):
-                    pair_fc[p, k] = 0.0
+                    j_rec[q, k] = 0.0
                 continue
             nx = dx / dist
             ny = dy / dist
@@ -274,12 +278,18 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             cx = ny * fz - nz * fy
             cy = nz * fx - nx * fz
             cz = nx * fy - ny * fx
-            pair_fc[p, 0] = fx
-            pair_fc[p, 1] = fy
-            pair_fc[p, 2] = fz
-            pair_fc[p, 3] = cx
-            pair_fc[p, 4] = cy
-            pair_fc[p, 5] = cz
+            q = j_slot[p]  # j gets −F and (a_j n) × F − M_r
+            j_rec[q, 0] = -fx
+            j_rec[q, 1] = -fy
+            j_rec[q, 2] = -fz
+            if rolling:
+                j_rec[q, 3] = aj * cx - res[6]
+                j_rec[q, 4] = aj * cy - res[7]
+                j_rec[q, 5] = aj * cz - res[8]
+            else:
+                j_rec[q, 3] = aj * cx
+                j_rec[q, 4] = aj * cy
+                j_rec[q, 5] = aj * cz
             sfx += fx; sfy += fy; sfz += fz
             stx += ai * cx + res[6]
             sty += ai * cy + res[7]
@@ -299,36 +309,10 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
 
 
 @njit(cache=True, error_model="numpy")
-def _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov, force, torque):
-    """Continue the i-side sums of region 1 with the j-side pairs (ascending i): −F and
-    (a_j n) × F − M_r with a_j = r_j − δ/2, as the pair kernel's torques. Without
-    rolling resistance M_r ≡ +0.0 and is not read (x − 0.0 = x exactly)."""
-    fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
-    tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
-    ri = radius[i]
-    for q in range(j_start[s], j_start[s + 1]):
-        p = j_pairs[q]
-        ov = pair_ov[p]
-        if ov <= 0.0:
-            continue
-        aj = ri - 0.5 * ov
-        fx -= pair_fc[p, 0]; fy -= pair_fc[p, 1]; fz -= pair_fc[p, 2]
-        if rolling:
-            tx += aj * pair_fc[p, 3] - hr[p, 0]
-            ty += aj * pair_fc[p, 4] - hr[p, 1]
-            tz += aj * pair_fc[p, 5] - hr[p, 2]
-        else:
-            tx += aj * pair_fc[p, 3]
-            ty += aj * pair_fc[p, 4]
-            tz += aj * pair_fc[p, 5]
-    return fx, fy, fz, tx, ty, tz
-
-
-@njit(cache=True, error_model="numpy")
-def _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
-                    perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
+                    perm, j_start, j_rec,
                     wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
                     orig, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, f_hist,
                     f_active, f_force, f_lambda, ref_pos, e2, dmax):
@@ -348,8 +332,13 @@ def _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping
         i = perm[s]
         if i >= n_owned:
             continue
-        fx, fy, fz, tx, ty, tz = _gather_j_side(s, i, rolling, radius, j_start, j_pairs, hr, pair_fc, pair_ov,
-                                                force, torque)
+        # the i-side sums of region 1, continued with the j-side records (ascending i);
+        # a pair not in contact has a zero record
+        fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
+        tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
+        for q in range(j_start[s], j_start[s + 1]):
+            fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
+            tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
         r = radius[i]
         # plane walls (DESIGN.md §2 with the wall as body j; as walls.plane_wall_contacts)
         for c in range(w_start[s], w_start[s + 1]):
@@ -520,7 +509,7 @@ def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
 def advance(nsteps, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
             prescribed_velocity, force, torque, young, pair_params,
-            perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
+            perm, i_start, pair_js, j_start, j_slot, ht, hr, j_rec, pair_ov,
             wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
             orig, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, f_hist,
             f_active, f_force, f_lambda, vertex_force, vertex_impulse,
@@ -546,12 +535,12 @@ def advance(nsteps, has_constraints, rolling, law, dt, gravity, local_damping, v
     for it in range(nsteps):
         for b in prange(nb):
             _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                        perm, i_start, pair_js, ht, hr, rolling, pair_fc, pair_ov, force, torque, e1)
+                        perm, i_start, pair_js, j_slot, ht, hr, rolling, j_rec, pair_ov, force, torque, e1)
         for b in prange(nb):
-            _particle_block(b, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
+            _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
                             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                             prescribed_velocity, force, torque, young, pair_params,
-                            perm, i_start, pair_js, j_start, j_pairs, ht, hr, pair_fc, pair_ov,
+                            perm, j_start, j_rec,
                             wall_point, wall_normal, wall_vel, wall_mat, w_start, w_idx, w_hist, w_fn, w_force,
                             orig, vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri,
                             f_hist, f_active, f_force, f_lambda, ref_pos, e2, dmax)

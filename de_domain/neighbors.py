@@ -1,7 +1,7 @@
 """Neighbour search: cell (bin) lists + Verlet lists with a skin (DESIGN.md §2).
 
 * Sphere pairs are a half list (i < j), sorted by (i, j) (CSR ``i_start``); a second
-  CSR (``j_start``/``j_pairs``) lists the pairs in which a particle is j, so that
+  CSR (``j_start``, slot ``j_slot[p]`` of pair p) orders the pairs by their j, so that
   forces are summed per particle in a fixed order (deterministic for any thread
   count, no atomics).
 * Sphere–facet candidates are sorted by (particle, triangle) (CSR ``f_start``/``f_tri``).
@@ -202,7 +202,7 @@ class NeighborList:
         self.ht = np.zeros((0, 3))
         self.hr = np.zeros((0, 3))
         self.j_start = np.zeros(1, np.int64)
-        self.j_pairs = np.empty(0, np.int32)
+        self.j_slot = np.empty(0, np.int32)
         self.f_start = np.zeros(1, np.int64)
         self.f_tri = np.empty(0, np.int32)
         self.facet_history = np.zeros((0, 6))
@@ -288,7 +288,7 @@ class NeighborList:
         self.i_start = i_start
         self.pair_js = self.iperm[pair_j]
         self._set_history(transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j))
-        self.j_start, self.j_pairs = fused.build_j_side(perm, self.iperm, i_start, self.pair_js)
+        self.j_start, self.j_slot = fused.build_j_side(perm, self.iperm, i_start, self.pair_js)
         # plane walls
         nw = np.int64(max(wall_point.shape[0], 1))
         old_keys = self.w_particle.astype(np.int64) * nw + self.w_idx
@@ -320,7 +320,7 @@ class NeighborList:
         return np.repeat(np.arange(counts.size, dtype=np.int64), counts)
 
     def memory_bytes(self):
-        names = ("perm", "iperm", "i_start", "pair_js", "ht", "hr", "j_start", "j_pairs", "f_start", "f_tri",
+        names = ("perm", "iperm", "i_start", "pair_js", "ht", "hr", "j_start", "j_slot", "f_start", "f_tri",
                  "facet_history", "w_start", "w_idx", "w_particle", "w_order", "w_hist", "w_fn", "w_force",
                  "ref_pos")
         return {f"neighbors.{k}": getattr(self, k).nbytes for k in names if getattr(self, k) is not None}
@@ -347,6 +347,6 @@ class NeighborList:
         n = self.perm.size
         self.iperm = np.empty(n, np.int32)
         self.iperm[self.perm] = np.arange(n, dtype=np.int32)
-        self.j_start, self.j_pairs = fused.build_j_side(self.perm, self.iperm, self.i_start, self.pair_js)
+        self.j_start, self.j_slot = fused.build_j_side(self.perm, self.iperm, self.i_start, self.pair_js)
         self.w_particle = np.repeat(self.perm, np.diff(self.w_start)).astype(np.int32)
         self.w_order = np.argsort(self.w_particle, kind="stable").astype(np.int32)
