@@ -117,6 +117,7 @@ class SpecimenSection(_Section):
     density_scale: float = Field(default=100.0, ge=1, le=1e4, description="mass scaling during generation only: density x this and gravity / this (real weights), so dt grows by its square root [-]")
     plate_velocity: float = Field(default=0.3, gt=0, description="speed of the compaction plate [m/s]")
     plate_stress_limit: float = Field(default=20e3, gt=0, description="plate stress above which the friction is halved to let the layer compact [Pa]")
+    friction_reduction: float = Field(default=0.5, gt=0, lt=1, description="factor on the generation friction each time the plate stalls [-]")
     local_damping: float = Field(default=0.5, ge=0, lt=1, description="local (Cundall) damping during generation (the test uses [dem] local_damping) [-]")
     unbalanced_force: float = Field(default=0.01, gt=0, le=0.5, description="a layer ends when the unbalanced force ratio is below this [-]")
     max_steps_per_layer: int = Field(default=200000, gt=0, description="safety cap on steps per layer [-]")

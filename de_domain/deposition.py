@@ -21,7 +21,8 @@ side walls, a rough bottom and a rough compaction plate on top:
   is mostly the loose zones along the plates below and above it and cannot be pushed
   to the mean void ratio (full-size thesis sand, 1.3 d_max layers: > 300 kPa at μ = 0.1).
   If the plate stress exceeds ``plate_stress_limit`` before the plate reaches z_k, the
-  particle friction is halved (down to 0) and the engine rebuilt from the current state,
+  particle friction is multiplied by ``friction_reduction`` (default ½; below 0.02 it
+  drops to 0) and the engine rebuilt from the current state,
   so dense targets stay reachable (YADE's "compaction friction" idea); every layer
   starts again at the deposition friction, so one hard layer does not make all the
   layers above it denser.
@@ -161,6 +162,7 @@ class GenerationSettings:
     unbalanced_force: float = 0.01
     plate_velocity: float = 0.3
     plate_stress_limit: float = 20e3
+    friction_reduction: float = 0.5
     seat_stress: float = 500.0
     layers: int | None = None
     undercompaction: float = 0.03
@@ -251,7 +253,7 @@ def _compact_to(engine, s, z_target, friction, log, label, max_steps):
             plate.velocity = np.zeros(3)
             held = True
         if not held and _plate_stress(engine, s) > s.plate_stress_limit and not _relaxes(engine, s):
-            friction = 0.0 if friction < 0.02 else 0.5 * friction
+            friction = 0.0 if friction < 0.02 else s.friction_reduction * friction
             _say(log, f"{label}: plate stress {_plate_stress(engine, s):.3g} Pa above the limit at "
                       f"z = {plate.point[2] * 1e3:.2f} mm; grain friction lowered to {friction:.3g}")
             engine = _rebuild(engine, s, friction, s.gravity)

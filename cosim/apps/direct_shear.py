@@ -85,10 +85,10 @@ def prepare(case, case_path):
             raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
         pos, radii, _, _ = built["packing"]
         L = ds.box_length
-        slack = 0.05 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
+        slack = 0.25 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
         if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > L + slack):
             raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {L} m x {L} m box "
-                            "(x, y in [0, L], overlapping a side by at most 5 % of the radius)")
+                            "(x, y in [0, L], overlapping a side by at most 25 % of the radius)")
     else:
         try:
             built["curve"] = curve_of(sp)
@@ -138,8 +138,9 @@ def make_specimen(case, case_path, built, out_dir, cache=None):
         friction=sp.deposition_friction, density_scale=sp.density_scale, gravity=tuple(case.dem.gravity),
         local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
         contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
-        plate_stress_limit=sp.plate_stress_limit, layers=sp.layers, undercompaction=sp.undercompaction,
-        cloud_solid_fraction=sp.cloud_solid_fraction, max_steps_per_layer=sp.max_steps_per_layer,
+        plate_stress_limit=sp.plate_stress_limit, friction_reduction=sp.friction_reduction, layers=sp.layers,
+        undercompaction=sp.undercompaction, cloud_solid_fraction=sp.cloud_solid_fraction,
+        max_steps_per_layer=sp.max_steps_per_layer,
         seed=case.case.seed)
     t0 = time.perf_counter()
     specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"))

@@ -41,10 +41,10 @@ def test_number_of_layers_follows_from_the_target_void_ratio():
     assert layer_count(0.65, 0.2) == 4      # 1/(1.65 * 0.2) = 3.03
     assert layer_count(0.84, 0.2) == 3      # 1/(1.84 * 0.2) = 2.72
     assert layer_count(0.65, 0.1) > layer_count(0.65, 0.2)
-    # ... but a layer stays at least one of the largest grains thick
-    assert layer_count(0.65, 0.1, height=0.025, d_max=0.006) == 4
-    assert layer_count(0.65, 0.2, height=0.025, d_max=0.005) == 4   # full size: dense 4 layers ...
-    assert layer_count(0.84, 0.2, height=0.025, d_max=0.005) == 3   # ... loose 3
+    # ... but a layer stays at least 1.5 of the largest grains thick
+    assert layer_count(0.65, 0.1, height=0.025, d_max=0.006) == 2
+    assert layer_count(0.65, 0.2, height=0.025, d_max=0.004) == 4
+    assert layer_count(0.84, 0.2, height=0.025, d_max=0.004) == 3
 
 
 def test_under_compaction_heights_end_at_the_specimen_height():
