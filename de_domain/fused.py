@@ -309,6 +309,23 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
 
 
 @njit(cache=True, error_model="numpy")
+def _leapfrog_dof(f, v, m, inv, dt, held, prescribed, prescribed_velocity, local_damping, viscous_damping):
+    """One DOF of the leapfrog (module docstring): returns v^{n+½}, v^n, the work of the
+    reaction of a held (blocked/prescribed) DOF and the work of the damping force."""
+    if held:
+        v_new = prescribed_velocity if prescribed else v
+        v_mid = 0.5 * (v + v_new)
+        reaction = (v_new - v) * m / dt - f
+        return v_new, v_mid, reaction * v_mid * dt, 0.0
+    f_damp = -viscous_damping * m * v
+    if local_damping > 0.0 and v != 0.0:
+        f_damp -= local_damping * abs(f) * np.sign(v)
+    v_new = v + dt * (f + f_damp) * inv
+    v_mid = 0.5 * (v + v_new)
+    return v_new, v_mid, 0.0, f_damp * v_mid * dt
+
+
+@njit(cache=True, error_model="numpy")
 def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
@@ -411,20 +428,12 @@ def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous
                     constrained = True
         for d in range(3):
             force[i, d] += m * gravity[d]
-            f = force[i, d]
             v = vel[i, d]
-            if constrained and (blocked[i, d] or prescribed[i, d]):
-                v_new = prescribed_velocity[i, d] if prescribed[i, d] else v
-                v_mid = 0.5 * (v + v_new)
-                reaction = (v_new - v) * m / dt - f
-                boundary += reaction * v_mid * dt
-            else:
-                f_damp = -viscous_damping * m * v
-                if local_damping > 0.0 and v != 0.0:
-                    f_damp -= local_damping * abs(f) * np.sign(v)
-                v_new = v + dt * (f + f_damp) * inv
-                v_mid = 0.5 * (v + v_new)
-                damping -= f_damp * v_mid * dt
+            held = constrained and (blocked[i, d] or prescribed[i, d])
+            v_new, v_mid, work, damped = _leapfrog_dof(force[i, d], v, m, inv, dt, held, prescribed[i, d],
+                                                       prescribed_velocity[i, d], local_damping, viscous_damping)
+            boundary += work
+            damping -= damped
             ke_t += 0.5 * m * v_mid * v_mid
             potential -= m * gravity[d] * pos[i, d]
             accel[i, d] = (v_new - v) / dt
@@ -433,20 +442,12 @@ def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous
         weight = inertia[i]
         inv = 1.0 / weight
         for d in range(3):
-            f = torque[i, d]
-            v = angvel[i, d]
-            if constrained and (blocked[i, d + 3] or prescribed[i, d + 3]):
-                v_new = prescribed_velocity[i, d + 3] if prescribed[i, d + 3] else v
-                v_mid = 0.5 * (v + v_new)
-                reaction = (v_new - v) * weight / dt - f
-                boundary += reaction * v_mid * dt
-            else:
-                f_damp = -viscous_damping * weight * v
-                if local_damping > 0.0 and v != 0.0:
-                    f_damp -= local_damping * abs(f) * np.sign(v)
-                v_new = v + dt * (f + f_damp) * inv
-                v_mid = 0.5 * (v + v_new)
-                damping -= f_damp * v_mid * dt
+            held = constrained and (blocked[i, d + 3] or prescribed[i, d + 3])
+            v_new, v_mid, work, damped = _leapfrog_dof(torque[i, d], angvel[i, d], weight, inv, dt, held,
+                                                       prescribed[i, d + 3], prescribed_velocity[i, d + 3],
+                                                       local_damping, viscous_damping)
+            boundary += work
+            damping -= damped
             ke_r += 0.5 * weight * v_mid * v_mid
             angvel[i, d] = v_new
         ex = pos[i, 0] - ref_pos[i, 0]
