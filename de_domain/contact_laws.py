@@ -56,6 +56,25 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
 
 
 @njit(cache=True, error_model="numpy")
+def rotate_into_plane(x, y, z, nx, ny, nz):
+    """Project a stored tangential vector on the plane normal to n and rescale it to its
+    old magnitude (rigid rotation of the spring with the contact, DESIGN.md §2).
+    Returns the vector and its old magnitude."""
+    norm_old = math.sqrt(x * x + y * y + z * z)
+    dot = x * nx + y * ny + z * nz
+    x -= dot * nx
+    y -= dot * ny
+    z -= dot * nz
+    norm_rot = math.sqrt(x * x + y * y + z * z)
+    if norm_rot > 0.0:
+        scale = norm_old / norm_rot
+        x *= scale
+        y *= scale
+        z *= scale
+    return x, y, z, norm_old
+
+
+@njit(cache=True, error_model="numpy")
 def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
                   k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
     """One contact step of DESIGN.md §2.
@@ -86,17 +105,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
     damping_dissipation = -(f_n - f_el) * v_rn_mid * dt
 
     # tangential spring: rotate into the new tangent plane, keep magnitude
-    ft_norm_old = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
-    dot = ftx * nx + fty * ny + ftz * nz
-    ftx -= dot * nx
-    fty -= dot * ny
-    ftz -= dot * nz
-    ft_norm_rot = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
-    if ft_norm_rot > 0.0:
-        scale = ft_norm_old / ft_norm_rot
-        ftx *= scale
-        fty *= scale
-        ftz *= scale
+    ftx, fty, ftz, ft_norm_old = rotate_into_plane(ftx, fty, ftz, nx, ny, nz)
     vtx = vrx - v_rn * nx
     vty = vry - v_rn * ny
     vtz = vrz - v_rn * nz
@@ -122,17 +131,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
     beta_r = params[PAIR_ROLLING_STIFFNESS]
     if beta_r > 0.0:
         k_r = beta_r * k_t * r_roll * r_roll
-        mr_norm_old = math.sqrt(mrx * mrx + mry * mry + mrz * mrz)
-        dot = mrx * nx + mry * ny + mrz * nz
-        mrx -= dot * nx
-        mry -= dot * ny
-        mrz -= dot * nz
-        mr_norm_rot = math.sqrt(mrx * mrx + mry * mry + mrz * mrz)
-        if mr_norm_rot > 0.0:
-            scale = mr_norm_old / mr_norm_rot
-            mrx *= scale
-            mry *= scale
-            mrz *= scale
+        mrx, mry, mrz, mr_norm_old = rotate_into_plane(mrx, mry, mrz, nx, ny, nz)
         w_n = wrx * nx + wry * ny + wrz * nz
         mrx += k_r * (wrx - w_n * nx) * dt
         mry += k_r * (wry - w_n * ny) * dt

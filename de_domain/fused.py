@@ -62,6 +62,18 @@ N_BOOKS = 23          # state 6, acc 5, first 5, last 5, initial_total, initiali
 
 
 # --------------------------------------------------------------------------- building
+@njit(cache=True, error_model="numpy")
+def insertion_sort(a, start, stop):
+    """Sort a[start:stop] ascending in place (short neighbour segments)."""
+    for k in range(start + 1, stop):
+        v = a[k]
+        m = k - 1
+        while m >= start and a[m] > v:
+            a[m + 1] = a[m]
+            m -= 1
+        a[m + 1] = v
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell, perm,
                         n_active, i_start, j_out, fill):
@@ -94,13 +106,7 @@ def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, par
         if not fill:
             i_start[s + 1] = count
         else:
-            for k in range(start + 1, start + count):  # insertion sort of the short segment
-                v = j_out[k]
-                m = k - 1
-                while m >= start and j_out[m] > v:
-                    j_out[m + 1] = j_out[m]
-                    m -= 1
-                j_out[m + 1] = v
+            insertion_sort(j_out, start, start + count)
 
 
 @njit(cache=True, error_model="numpy")

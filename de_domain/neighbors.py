@@ -70,18 +70,6 @@ def build_cell_grid(pos, n_active, cell_size, max_cells):
 
 
 @njit(cache=True)
-def _insertion_sort(a, start, stop):
-    """Sort a[start:stop] ascending in place (short neighbour segments)."""
-    for k in range(start + 1, stop):
-        v = a[k]
-        m = k - 1
-        while m >= start and a[m] > v:
-            a[m + 1] = a[m]
-            m -= 1
-        a[m + 1] = v
-
-
-@njit(cache=True)
 def _triangles_per_cell(vertices, triangles, reach, lo, cell_size, dims):
     """CSR cell → triangles whose bounding box grown by ``reach`` overlaps the cell."""
     n_cells = dims[0] * dims[1] * dims[2]
@@ -136,7 +124,7 @@ def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell,
         if not fill:
             f_start[i + 1] = count
         else:
-            _insertion_sort(f_out, f_start[i], f_start[i] + count)
+            fused.insertion_sort(f_out, f_start[i], f_start[i] + count)
 
 
 def build_facet_list(pos, radius, n_active, skin, vertices, triangles, grid):
