@@ -363,7 +363,7 @@ def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous
             fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
             tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
         r = radius[i]
-        # plane walls (DESIGN.md §2 with the wall as body j; as walls.plane_wall_contacts)
+        # plane walls (DESIGN.md §2 with the wall as body j; walls module docstring)
         for c in range(w_start[s], w_start[s + 1]):
             w = w_idx[c]
             dist = 0.0
@@ -494,7 +494,7 @@ def record_energy(books, pe, we, ie):
 @njit(cache=True, error_model="numpy")
 def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
     """Force of the particles on each wall, summed per block of ``block`` particles in
-    particle order, then over the blocks (the order of walls.plane_wall_contacts)."""
+    particle order, then over the blocks (a fixed order for any thread count)."""
     total = np.zeros((n_walls, 3))
     part = np.zeros((n_walls, 3))
     current = -1
