@@ -168,14 +168,14 @@ class ShearTest:
         """``engine``: walls [bottom, top plate], facets [lower half, upper half] (see
         :meth:`build`); ``height``: specimen height before consolidation; ``x0``: the
         upper half's vertex x at zero shear (default: now)."""
-        from cosim.lab.shear_box import ShearBoxGeometry, mass_median_diameter
+        from cosim.lab.shear_box import mass_median_diameter
         self.case = case
         ds = self.ds = case.direct_shear
         mats, sand, wall, plate = materials(case)
         self.young_grain, self.young_plate = mats[sand].young, mats[plate].young
         self.density = mats[sand].density
         self.L = ds.box_length
-        self.geometry = ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
+        self.geometry = self.box_geometry(case, height)
         self.engine = engine
         self.bottom, self.plate = engine.walls
         self.lower, self.upper = engine.facets
@@ -189,14 +189,19 @@ class ShearTest:
         self.v_integral = 0.0
         self.shear_velocity = 0.0
 
+    @staticmethod
+    def box_geometry(case, height):
+        """The split box for a specimen of ``height``; lips one shear distance + 5 % L long."""
+        from cosim.lab.shear_box import ShearBoxGeometry
+        ds = case.direct_shear
+        return ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
+
     @classmethod
     def build(cls, case, positions, radii, height):
         """The specimen in the split box (module docstring, step 2)."""
         from de_domain import Engine, FacetMesh, Particles, PlaneWall
-        from cosim.lab.shear_box import ShearBoxGeometry
-        ds = case.direct_shear
         mats, sand, wall, plate = materials(case)
-        geometry = ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
+        geometry = cls.box_geometry(case, height)
         particles = Particles.from_spheres(positions, radii, np.full(len(radii), sand, np.int32), mats)
         facets = [FacetMesh(*geometry.lower_half(), material=wall), FacetMesh(*geometry.upper_half(), material=wall)]
         walls = [PlaneWall((0, 0, 0), (0, 0, 1), material=plate), PlaneWall((0, 0, height), (0, 0, -1), material=plate)]
