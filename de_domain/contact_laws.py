@@ -25,12 +25,15 @@ from .materials import (
     PAIR_STIFFNESS_RATIO,
 )
 
+# LLVM flags of the contact kernels: FMA contraction, reciprocals, no signed zeros; never
+# "nnan"/"ninf" (NaN is a marker in the pair kernel). One code path: still deterministic.
+FASTMATH = {"contract", "arcp", "nsz"}
 LINEAR = 0
 HERTZ = 1
 LAWS = {"linear": LINEAR, "hertz": HERTZ}
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def linear_normal_stiffness(young_i, radius_i, young_j, radius_j):
     """k_n = k_i k_j/(k_i + k_j) with k = 4 E r (thesis Eq. 3.28–3.30): 2 E r* for equal E."""
     k_i = 4.0 * young_i * radius_i
@@ -38,7 +41,7 @@ def linear_normal_stiffness(young_i, radius_i, young_j, radius_j):
     return k_i * k_j / (k_i + k_j)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
     """Elastic normal force, tangent normal stiffness, tangential stiffness, stored energy.
 
@@ -55,26 +58,28 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
     return f, k_linear, k_linear / params[PAIR_STIFFNESS_RATIO], 0.5 * f * overlap
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def rotate_into_plane(x, y, z, nx, ny, nz):
     """Project a stored tangential vector on the plane normal to n and rescale it to its
     old magnitude (rigid rotation of the spring with the contact, DESIGN.md §2).
-    Returns the vector and its old magnitude."""
-    norm_old = math.sqrt(x * x + y * y + z * z)
+    Returns the vector and its old squared magnitude (one square root)."""
+    norm2_old = x * x + y * y + z * z
+    if norm2_old == 0.0:
+        return x, y, z, 0.0
     dot = x * nx + y * ny + z * nz
     x -= dot * nx
     y -= dot * ny
     z -= dot * nz
-    norm_rot = math.sqrt(x * x + y * y + z * z)
-    if norm_rot > 0.0:
-        scale = norm_old / norm_rot
+    norm2_rot = x * x + y * y + z * z
+    if norm2_rot > 0.0:
+        scale = math.sqrt(norm2_old / norm2_rot)
         x *= scale
         y *= scale
         z *= scale
-    return x, y, z, norm_old
+    return x, y, z, norm2_old
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
                   k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
     """One contact step of DESIGN.md §2.
@@ -105,51 +110,57 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
     damping_dissipation = -(f_n - f_el) * v_rn_mid * dt
 
     # tangential spring: rotate into the new tangent plane, keep magnitude
-    ftx, fty, ftz, ft_norm_old = rotate_into_plane(ftx, fty, ftz, nx, ny, nz)
+    ftx, fty, ftz, ft2_old = rotate_into_plane(ftx, fty, ftz, nx, ny, nz)
     vtx = vrx - v_rn * nx
     vty = vry - v_rn * ny
     vtz = vrz - v_rn * nz
     ftx += k_t * vtx * dt
     fty += k_t * vty * dt
     ftz += k_t * vtz * dt
-    ft_trial = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    ft2_trial = ftx * ftx + fty * fty + ftz * ftz
     ft_max = params[PAIR_FRICTION] * f_n
+    inv_kt = 1.0 / k_t
     friction_dissipation = 0.0
-    if ft_trial > ft_max:
+    if ft2_trial > ft_max * ft_max:  # slip (squares compared: no root while sticking)
+        ft_trial = math.sqrt(ft2_trial)
         scale = ft_max / ft_trial
         ftx *= scale
         fty *= scale
         ftz *= scale
         if ft_max > 0.0:
-            friction_dissipation = (ft_trial - ft_max) * ft_max / k_t
+            friction_dissipation = (ft_trial - ft_max) * ft_max * inv_kt
         else:  # zero normal force (μ = 0 or f_n clipped): the stored spring is released
-            friction_dissipation = 0.5 * ft_norm_old * ft_norm_old / k_t
-    e_tangential = 0.5 * (ft_max * ft_max if ft_trial > ft_max else ft_trial * ft_trial) / k_t
+            friction_dissipation = 0.5 * ft2_old * inv_kt
+        e_tangential = 0.5 * ft_max * ft_max * inv_kt
+    else:
+        e_tangential = 0.5 * ft2_trial * inv_kt
 
     # rolling resistance (elastic–plastic spring)
     e_rolling = 0.0
     beta_r = params[PAIR_ROLLING_STIFFNESS]
     if beta_r > 0.0:
         k_r = beta_r * k_t * r_roll * r_roll
-        mrx, mry, mrz, mr_norm_old = rotate_into_plane(mrx, mry, mrz, nx, ny, nz)
+        inv_kr = 1.0 / k_r
+        mrx, mry, mrz, mr2_old = rotate_into_plane(mrx, mry, mrz, nx, ny, nz)
         w_n = wrx * nx + wry * ny + wrz * nz
         mrx += k_r * (wrx - w_n * nx) * dt
         mry += k_r * (wry - w_n * ny) * dt
         mrz += k_r * (wrz - w_n * nz) * dt
-        mr_trial = math.sqrt(mrx * mrx + mry * mry + mrz * mrz)
+        mr2_trial = mrx * mrx + mry * mry + mrz * mrz
         mr_max = params[PAIR_ROLLING_FRICTION] * f_n * r_roll
-        mr_final = mr_trial
-        if mr_trial > mr_max:
+        if mr2_trial > mr_max * mr_max:
+            mr_trial = math.sqrt(mr2_trial)
             scale = mr_max / mr_trial
             mrx *= scale
             mry *= scale
             mrz *= scale
-            mr_final = mr_max
             if mr_max > 0.0:
-                friction_dissipation += (mr_trial - mr_max) * mr_max / k_r
+                friction_dissipation += (mr_trial - mr_max) * mr_max * inv_kr
             else:
-                friction_dissipation += 0.5 * mr_norm_old * mr_norm_old / k_r
-        e_rolling = 0.5 * mr_final * mr_final / k_r
+                friction_dissipation += 0.5 * mr2_old * inv_kr
+            e_rolling = 0.5 * mr_max * mr_max * inv_kr
+        else:
+            e_rolling = 0.5 * mr2_trial * inv_kr
     else:
         mrx = 0.0
         mry = 0.0
@@ -162,7 +173,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
             e_normal, e_tangential, e_rolling, friction_dissipation, damping_dissipation)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def released_energy(law, params, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, mry, mrz):
     """Elastic energy left in the tangential/rolling springs when a contact opens.
 

@@ -25,7 +25,12 @@ side walls, a rough bottom and a rough compaction plate on top:
   drops to 0) and the engine rebuilt from the current state,
   so dense targets stay reachable (YADE's "compaction friction" idea); every layer
   starts again at the deposition friction, so one hard layer does not make all the
-  layers above it denser.
+  layers above it denser. Loose targets use a high deposition friction and rolling
+  resistance (``rolling_friction`` η_r, ``rolling_stiffness`` β_r, generation only;
+  η_r is lowered in proportion to μ; ``hold_friction`` restores the friction once the plate
+  holds the layer at its height, so that the layer does not creep below it): rolling resistance keeps a frictional deposit
+  from collapsing into the denser packings that rolling spheres find (e.g. Jiang,
+  Yu & Harris, Géotechnique 2005; Wensrich & Katterfeld, Powder Technol. 2012).
 * :func:`radius_expansion` — the spheres of the whole specimen are placed at reduced
   radii in the closed box (L × L × H) and grown to full size in small increments
   without gravity; the void ratio is then exact by construction if the grains jam in
@@ -154,6 +159,8 @@ class GenerationSettings:
     wall: object                      # material of the (frictionless) side walls
     plate: object                     # material of the bottom and the compaction plate
     friction: float | None = None     # grain friction during generation; None = sand's
+    rolling_friction: float | None = None   # grain η_r during generation; None = sand's
+    rolling_stiffness: float | None = None  # grain β_r during generation; None = sand's
     density_scale: float = 100.0
     gravity: tuple = (0.0, 0.0, -9.81)
     local_damping: float = 0.5
@@ -163,6 +170,7 @@ class GenerationSettings:
     plate_velocity: float = 0.3
     plate_stress_limit: float = 20e3
     friction_reduction: float = 0.5
+    hold_friction: float | None = None  # grain friction while the plate holds a layer; None = as reached
     seat_stress: float = 500.0
     layers: int | None = None
     undercompaction: float = 0.03
@@ -190,8 +198,18 @@ class Specimen:
 
 
 # --------------------------------------------------------------------------- engine plumbing
+def _start_friction(s):
+    return s.sand.friction if s.friction is None else s.friction
+
+
 def _materials(s, friction):
-    sand = replace(s.sand, density=s.sand.density * s.density_scale, friction=friction)
+    """Generation materials: densities × ``density_scale``; the grains get the generation
+    friction and rolling resistance, the rolling friction η_r lowered in proportion to μ."""
+    mu0 = _start_friction(s)
+    eta = s.sand.rolling_friction if s.rolling_friction is None else s.rolling_friction
+    beta = s.sand.rolling_stiffness if s.rolling_stiffness is None else s.rolling_stiffness
+    sand = replace(s.sand, density=s.sand.density * s.density_scale, friction=friction,
+                   rolling_friction=eta * (friction / mu0 if mu0 > 0 else 1.0), rolling_stiffness=beta)
     wall = replace(s.wall, density=s.wall.density * s.density_scale)
     plate = replace(s.plate, density=s.plate.density * s.density_scale)
     return [sand, wall, plate]
@@ -252,6 +270,10 @@ def _compact_to(engine, s, z_target, friction, log, label, max_steps):
             plate.point[2] = z_target
             plate.velocity = np.zeros(3)
             held = True
+            if s.hold_friction is not None and s.hold_friction != friction:
+                friction = s.hold_friction
+                engine.set_materials(_materials(s, friction))  # contact history kept
+                _say(log, f"{label}: plate at its height; grain friction set to {friction:.3g} while it holds")
         if not held and _plate_stress(engine, s) > s.plate_stress_limit and not _relaxes(engine, s):
             friction = 0.0 if friction < 0.02 else s.friction_reduction * friction
             _say(log, f"{label}: plate stress {_plate_stress(engine, s):.3g} Pa above the limit at "
@@ -317,7 +339,7 @@ def under_compaction(diameters, s: GenerationSettings, log=None):
     n_layers = s.layers or layer_count(s.void_ratio, s.cloud_solid_fraction, H, float(np.max(diameters)))
     groups = split_into_layers(np.asarray(diameters, float), n_layers, rng)
     tops = layer_tops(n_layers, H, s.undercompaction)
-    start_friction = s.sand.friction if s.friction is None else s.friction
+    start_friction = _start_friction(s)
     dt = s.safety_factor * _critical_dt_all(s, diameters)  # one dt for every stage
     pos = np.zeros((0, 3))
     radii = np.zeros(0)
@@ -375,7 +397,7 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
     pos, r0 = random_cloud(radii_full * shrink, (0, 0, 0), (L, L, H), seed=s.seed)
     order = np.argsort(-radii_full, kind="stable")  # random_cloud returns radii largest first
     radii_full = radii_full[order]
-    friction = s.sand.friction if s.friction is None else s.friction
+    friction = _start_friction(s)
     dt = s.safety_factor * _critical_dt_all(s, diameters)
     vel = np.zeros_like(pos)
     angvel = np.zeros_like(pos)

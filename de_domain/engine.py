@@ -86,6 +86,24 @@ class Engine:
         self._allocate_pair_arrays(0)
         self._energy_reset()
 
+    def set_materials(self, materials):
+        """Replace the contact parameters (friction, restitution, stiffness ratio, rolling
+        resistance) in place, keeping positions, velocities and the contact history.
+        Densities and Young's moduli (masses, stiffnesses, Δt) and whether any pair has
+        rolling resistance must stay as they are."""
+        new = [m if isinstance(m, Material) else Material(**m) for m in materials]
+        if len(new) != len(self.materials):
+            raise ValueError(f"Engine.set_materials: {len(new)} materials given, the engine has {len(self.materials)}")
+        for k, (a, b) in enumerate(zip(self.materials, new)):
+            if (a.density, a.young, a.poisson) != (b.density, b.young, b.poisson):
+                raise ValueError(f"Engine.set_materials: material {k} changes density, young or poisson; "
+                                 "only contact parameters may change")
+        table = pair_table(new)
+        if bool(np.any(table[:, :, PAIR_ROLLING_STIFFNESS] > 0.0)) != self.neighbors.rolling:
+            raise ValueError("Engine.set_materials: rolling stiffness cannot be switched on or off in a run")
+        self.materials = new
+        self.pair_params = table
+
     # ------------------------------------------------------------------ setup
     def _setup_facet_topology(self):
         tris, edges, mats, meshes, v_off, e_off = [], [], [], [], 0, 0
@@ -220,7 +238,7 @@ class Engine:
             copies = self._sorted_copies()
         vertices, vertex_vel = self._gather_facets()
         impulse = (np.concatenate([m.vertex_impulse for m in self.facets]) if self.facets else np.zeros((0, 3)))
-        fused.advance(nsteps, *self._kernel_args(wp, wn, wv, wm, (vertices, vertex_vel, impulse), copies),
+        fused.advance(nsteps, copies is not None, *self._kernel_args(wp, wn, wv, wm, (vertices, vertex_vel, impulse), copies),
                       self._books, clock)
         if copies is not None:
             perm = self.neighbors.perm

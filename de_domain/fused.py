@@ -36,7 +36,9 @@ taken in a canonical order (pairs by original index, i-side before j-side, walls
 by index, facets by triangle), so positions, velocities, forces, torques, contact
 histories and wall forces are bit-identical for any thread count, any skin (list
 rebuild frequency) and either storage path (in place through ``perm``, or spatially
-sorted copies); only the energy books are summed in block order.
+sorted copies); only the energy books are summed in block order. ``in_order`` says the arrays are
+the spatially sorted copies (index = perm position): the kernels then skip the
+``perm`` lookup (one dependent load less per pair).
 
 Storage (CSR over perm positions ``s``): pairs of particle ``perm[s]`` as i-side are
 ``i_start[s]:i_start[s+1]`` (partner ``pair_j``, sorted by index); its j-side pairs
@@ -51,7 +53,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .contact_laws import contact_force, linear_normal_stiffness, released_energy
+from .contact_laws import FASTMATH, HERTZ, contact_force, linear_normal_stiffness, released_energy
 from .walls import facet_contacts_of, facet_vertex_forces
 
 PBLOCK = 256          # particles per parallel work item (and per energy block)
@@ -192,8 +194,8 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
 
 
 # --------------------------------------------------------------------------- stepping
-@njit(cache=True, error_model="numpy")
-def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)  # region 1 only (contact_laws.FASTMATH)
+def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
                 perm, i_start, pair_js, j_slot, ht, hr, rolling, j_rec, pair_ov, force, torque, e1):
     """Region 1 work item: the i-side pairs of perm positions [b·PBLOCK, (b+1)·PBLOCK).
 
@@ -212,13 +214,13 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
     fr = 0.0
     dm = 0.0
     for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
-        i = perm[s]
+        i = s if in_order else perm[s]
         ri = radius[i]
         mi = material[i]
         sfx = 0.0; sfy = 0.0; sfz = 0.0
         stx = 0.0; sty = 0.0; stz = 0.0
         for p in range(i_start[s], i_start[s + 1]):
-            j = perm[pair_js[p]]
+            j = pair_js[p] if in_order else perm[pair_js[p]]
             dx = pos[j, 0] - pos[i, 0]
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
@@ -252,9 +254,10 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
                 for k in range(6):
                     j_rec[q, k] = 0.0
                 continue
-            nx = dx / dist
-            ny = dy / dist
-            nz = dz / dist
+            inv_dist = 1.0 / dist
+            nx = dx * inv_dist
+            ny = dy * inv_dist
+            nz = dz * inv_dist
             ai = ri - 0.5 * overlap
             aj = rj - 0.5 * overlap
             vix = vel[i, 0] + ai * (angvel[i, 1] * nz - angvel[i, 2] * ny)
@@ -265,7 +268,7 @@ def _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, you
             vjz = vel[j, 2] - aj * (angvel[j, 0] * ny - angvel[j, 1] * nx)
             params = pair_params[mi, material[j]]
             k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
-            r_red = ri * rj / (ri + rj)
+            r_red = ri * rj / (ri + rj) if law == HERTZ or rolling else 0.0  # R* (Hertz), r̄ (rolling)
             m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
             dvn = 0.5 * dt * ((accel[j, 0] - accel[i, 0]) * nx + (accel[j, 1] - accel[i, 1]) * ny
                               + (accel[j, 2] - accel[i, 2]) * nz)
@@ -332,7 +335,7 @@ def _leapfrog_dof(f, v, m, inv, dt, held, prescribed, prescribed_velocity, local
 
 
 @njit(cache=True, error_model="numpy")
-def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def _particle_block(b, in_order, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
                     pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                     prescribed_velocity, force, torque, young, pair_params,
                     perm, j_start, j_rec,
@@ -352,7 +355,7 @@ def _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous
     boundary = 0.0
     d2max = 0.0
     for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
-        i = perm[s]
+        i = s if in_order else perm[s]
         if i >= n_owned:
             continue
         # the i-side sums of region 1, continued with the j-side records (ascending i);
@@ -513,7 +516,7 @@ def wall_totals(n_walls, w_idx, w_particle, w_order, w_force, block):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def advance(nsteps, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
+def advance(nsteps, in_order, has_constraints, rolling, law, dt, gravity, local_damping, viscous_damping, n_owned,
             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
             prescribed_velocity, force, torque, young, pair_params,
             perm, i_start, pair_js, j_start, j_slot, ht, hr, j_rec, pair_ov,
@@ -541,10 +544,10 @@ def advance(nsteps, has_constraints, rolling, law, dt, gravity, local_damping, v
     ie = np.empty(5)
     for it in range(nsteps):
         for b in prange(nb):
-            _pair_block(b, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
+            _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
                         perm, i_start, pair_js, j_slot, ht, hr, rolling, j_rec, pair_ov, force, torque, e1)
         for b in prange(nb):
-            _particle_block(b, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
+            _particle_block(b, in_order, has_constraints, law, dt, gravity, local_damping, viscous_damping, n_owned,
                             pos, vel, accel, angvel, radius, mass, inertia, material, blocked, prescribed,
                             prescribed_velocity, force, torque, young, pair_params,
                             perm, j_start, j_rec,
