@@ -271,6 +271,7 @@ def _compact_to(engine, s, z_target, friction, log, label, max_steps):
             plate.velocity = np.zeros(3)
             held = True
             if s.hold_friction is not None and s.hold_friction != friction:
+                _relaxes(engine, s)  # first shed the arriving plate's dynamic overstress
                 friction = s.hold_friction
                 engine.set_materials(_materials(s, friction))  # contact history kept
                 _say(log, f"{label}: plate at its height; grain friction set to {friction:.3g} while it holds")

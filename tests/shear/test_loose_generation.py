@@ -30,7 +30,7 @@ def test_rolling_resistance_and_hold_friction_reach_a_loose_target():
     specimen = _generate(rolling_friction=0.3, rolling_stiffness=1.0, hold_friction=1.0)
     assert specimen.void_ratio == pytest.approx(E, abs=0.01)
     assert specimen.height == pytest.approx(H)          # the plate was never lowered below the layer top
-    assert specimen.log[-1]["plate_stress"] > 1e3        # ... because the layer still carries it
+    assert 1e3 < specimen.log[-1]["plate_stress"] < 5e4  # the layer carries it, below the stress limit
     assert specimen.log[-1]["friction"] == 1.0           # restored while holding
 
 
