@@ -47,7 +47,8 @@ are inside it. The loops visit particles in a spatial (Morton) order, and runs o
 arrays keep their order; they are written back after the run). Plane-wall contact
 history is sparse (walls within r + skin). ``Engine.memory_bytes()`` lists the
 bytes of every per-particle and per-contact array. ``de_domain.threading`` sets the
-Numba threading defaults (omp layer, ``OMP_WAIT_POLICY=PASSIVE``) on import, so
+Numba threading defaults (omp layer; a short spin of idle workers when the threads fit
+the cores, ``OMP_WAIT_POLICY=PASSIVE`` when they do not) on import, so
 import de_domain before the first ``numba.set_num_threads``/parallel call.
 
 Developer notes: kernels are ``numba.njit(cache=True)``; Numba's cache does not
