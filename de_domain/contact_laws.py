@@ -62,21 +62,28 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
 def rotate_into_plane(x, y, z, nx, ny, nz):
     """Project a stored tangential vector on the plane normal to n and rescale it to its
     old magnitude (rigid rotation of the spring with the contact, DESIGN.md §2).
-    Returns the vector and its old squared magnitude (one square root)."""
+
+    The scale is |x|/|x − (x·n)n| = (1 − q)^(−½), q = (x·n)²/|x|². For the small turns of
+    one step (q < 1e-6) it is the series 1 + q/2 + 3q²/8 (truncation < 4e-19, below
+    round-off), which keeps the square root and division off the contact's dependency
+    chain; otherwise the exact ratio. Returns the vector and its old squared magnitude."""
     norm2_old = x * x + y * y + z * z
     if norm2_old == 0.0:
         return x, y, z, 0.0
+    inv_norm2_old = 1.0 / norm2_old  # depends on the stored vector only: computed early
     dot = x * nx + y * ny + z * nz
     x -= dot * nx
     y -= dot * ny
     z -= dot * nz
-    norm2_rot = x * x + y * y + z * z
-    if norm2_rot > 0.0:
+    q = dot * dot * inv_norm2_old
+    if q < 1e-6:
+        scale = 1.0 + q * (0.5 + 0.375 * q)
+    else:
+        norm2_rot = x * x + y * y + z * z
+        if norm2_rot <= 0.0:
+            return x, y, z, norm2_old
         scale = math.sqrt(norm2_old / norm2_rot)
-        x *= scale
-        y *= scale
-        z *= scale
-    return x, y, z, norm2_old
+    return x * scale, y * scale, z * scale, norm2_old
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)

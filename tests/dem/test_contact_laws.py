@@ -119,3 +119,17 @@ def test_no_tension_restitution_is_continuous_and_decreasing_in_damping_ratio():
     assert np.max(np.abs(np.diff(e))) < 5e-3
     assert restitution_of_damping_ratio(1.0 - 1e-9) == pytest.approx(np.exp(-2.0), rel=1e-6)
     assert restitution_of_damping_ratio(np.sqrt(0.5)) == pytest.approx(np.exp(-np.pi / 2), rel=1e-12)
+
+
+@pytest.mark.parametrize("tilt", [1e-5, 1e-3, 0.3, 1.2])  # series branch (q < 1e-6) and exact branch
+def test_spring_rotation_keeps_magnitude_and_lies_in_the_new_tangent_plane(tilt):
+    from de_domain.contact_laws import rotate_into_plane
+    rng = np.random.default_rng(7)
+    n = np.array([0.0, 0.0, 1.0])
+    for _ in range(20):
+        t = rng.normal(size=2)
+        ft = np.array([t[0], t[1], 0.0]) * 3.7 + n * np.tan(tilt) * np.hypot(*t) * 3.7  # tilted off the plane
+        x, y, z, old2 = rotate_into_plane(*ft, *n)
+        assert old2 == pytest.approx(ft @ ft, rel=1e-15)
+        assert np.hypot(np.hypot(x, y), z) == pytest.approx(np.linalg.norm(ft), rel=2e-15)
+        assert abs(z) <= 1e-15 * np.linalg.norm(ft)
