@@ -28,9 +28,10 @@ side walls, a rough bottom and a rough compaction plate on top:
   layers above it denser. Loose targets use a high deposition friction and rolling
   resistance (``rolling_friction`` η_r, ``rolling_stiffness`` β_r, generation only;
   η_r is lowered in proportion to μ; ``hold_friction`` restores the friction once the plate
-  holds the layer at its height, so that the layer does not creep below it): rolling resistance keeps a frictional deposit
-  from collapsing into the denser packings that rolling spheres find (e.g. Jiang,
-  Yu & Harris, Géotechnique 2005; Wensrich & Katterfeld, Powder Technol. 2012).
+  holds the layer at its height, so that the layer does not creep below it): rolling
+  resistance keeps a frictional deposit from collapsing into the denser packings that
+  rolling spheres find (e.g. Jiang, Yu & Harris, Géotechnique 2005; Wensrich &
+  Katterfeld, Powder Technol. 2012).
 * :func:`radius_expansion` — the spheres of the whole specimen are placed at reduced
   radii in the closed box (L × L × H) and grown to full size in small increments
   without gravity; the void ratio is then exact by construction if the grains jam in
@@ -160,7 +161,7 @@ class GenerationSettings:
     plate: object                     # material of the bottom and the compaction plate
     friction: float | None = None     # grain friction during generation; None = sand's
     rolling_friction: float | None = None   # grain η_r during generation; None = sand's
-    rolling_stiffness: float | None = None  # grain β_r during generation; None = sand's
+    rolling_stiffness: float | None = None  # grain β_r during generation; None = sand's (1 if 0 and η_r > 0)
     density_scale: float = 100.0
     gravity: tuple = (0.0, 0.0, -9.81)
     local_damping: float = 0.5
@@ -208,6 +209,8 @@ def _materials(s, friction):
     mu0 = _start_friction(s)
     eta = s.sand.rolling_friction if s.rolling_friction is None else s.rolling_friction
     beta = s.sand.rolling_stiffness if s.rolling_stiffness is None else s.rolling_stiffness
+    if s.rolling_stiffness is None and beta == 0.0 and eta > 0.0:
+        beta = 1.0  # a rolling friction needs a rolling spring
     sand = replace(s.sand, density=s.sand.density * s.density_scale, friction=friction,
                    rolling_friction=eta * (friction / mu0 if mu0 > 0 else 1.0), rolling_stiffness=beta)
     wall = replace(s.wall, density=s.wall.density * s.density_scale)

@@ -30,7 +30,6 @@ import os
 SPIN_COUNT = "30000"
 WAIT_POLICY = "PASSIVE"
 LOCAL_RANK_VARIABLES = ("OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS", "PMI_LOCAL_SIZE")
-_configured = {}
 
 
 def threads_fit_cores(threads, environ=os.environ):
@@ -54,8 +53,6 @@ def configure():
     if "NUMBA_THREADING_LAYER" not in os.environ:
         has_omp = importlib.util.find_spec("numba.np.ufunc.omppool") is not None
         numba.config.THREADING_LAYER = "omp" if has_omp else "workqueue"
-    _configured.update(layer=numba.config.THREADING_LAYER, wait_policy=os.environ.get("OMP_WAIT_POLICY"),
-                       spin_count=os.environ.get("GOMP_SPINCOUNT"))
 
 
 def describe():

@@ -113,16 +113,6 @@ def read_specimen(path):
 
 
 # --------------------------------------------------------------------------- 1. specimen
-def deposition_rolling_stiffness(sp, sand):
-    """β_r during generation: the case key, else the sand's, else 1 when a generation η_r
-    is given (rolling friction needs a rolling spring)."""
-    if sp.deposition_rolling_stiffness is not None:
-        return sp.deposition_rolling_stiffness
-    if sp.deposition_rolling_friction and sand.rolling_stiffness == 0.0:
-        return 1.0
-    return None
-
-
 def make_specimen(case, case_path, built, out_dir, cache=None):
     """Load or generate the specimen; returns (positions, radii, height, info dict)."""
     from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
@@ -146,7 +136,8 @@ def make_specimen(case, case_path, built, out_dir, cache=None):
     settings = GenerationSettings(
         box_length=L, height=H, void_ratio=sp.void_ratio, sand=mats[sand], wall=mats[wall], plate=mats[plate],
         friction=sp.deposition_friction, rolling_friction=sp.deposition_rolling_friction,
-        rolling_stiffness=deposition_rolling_stiffness(sp, mats[sand]), density_scale=sp.density_scale, gravity=tuple(case.dem.gravity),
+        rolling_stiffness=sp.deposition_rolling_stiffness, density_scale=sp.density_scale,
+        gravity=tuple(case.dem.gravity),
         local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
         contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
         plate_stress_limit=sp.plate_stress_limit, friction_reduction=sp.friction_reduction,

@@ -27,7 +27,7 @@ def _generate(**extra):
 
 
 def test_rolling_resistance_and_hold_friction_reach_a_loose_target():
-    specimen = _generate(rolling_friction=0.3, rolling_stiffness=1.0, hold_friction=1.0)
+    specimen = _generate(rolling_friction=0.3, hold_friction=1.0)  # beta_r defaults to 1
     assert specimen.void_ratio == pytest.approx(E, abs=0.01)
     assert specimen.height == pytest.approx(H)          # the plate was never lowered below the layer top
     assert 1e3 < specimen.log[-1]["plate_stress"] < 5e4  # the layer carries it, below the stress limit
