@@ -9,6 +9,13 @@ it is the −k_r Δθ_r spring of DESIGN.md §2 seen from j.
 
 Law selection is an integer (``LINEAR`` or ``HERTZ``) resolved in one place,
 :func:`normal_force_and_stiffness`; every kernel calls :func:`contact_force`.
+
+Parameters are read in place as ``pair_params[a, b, PAIR_*]`` for the material pair
+(a, b): taking the row ``pair_params[a, b]`` would make an array view, which costs a
+reference-count increment and decrement (two calls, atomic) per contact.
+:func:`contact_force` is inlined into its callers (Numba ``inline="always"``; a call
+would pass 27 arguments and return 14 values through memory), so it is compiled with
+the caller's flags: ``FASTMATH`` in the sphere-pair kernel, none for walls and facets.
 """
 import math
 
@@ -42,7 +49,7 @@ def linear_normal_stiffness(young_i, radius_i, young_j, radius_j):
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
-def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
+def normal_force_and_stiffness(law, overlap, k_linear, r_star, pair_params, a, b):
     """Elastic normal force, tangent normal stiffness, tangential stiffness, stored energy.
 
     LINEAR: f = k_n δ, k_t = k_n/κ, U = ½ k_n δ².
@@ -51,11 +58,11 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, params):
     """
     if law == HERTZ:
         root = math.sqrt(r_star * overlap)
-        e_star = params[PAIR_E_STAR]
+        e_star = pair_params[a, b, PAIR_E_STAR]
         f = 4.0 / 3.0 * e_star * root * overlap
-        return f, 2.0 * e_star * root, 8.0 * params[PAIR_G_STAR] * root, 0.4 * f * overlap
+        return f, 2.0 * e_star * root, 8.0 * pair_params[a, b, PAIR_G_STAR] * root, 0.4 * f * overlap
     f = k_linear * overlap
-    return f, k_linear, k_linear / params[PAIR_STIFFNESS_RATIO], 0.5 * f * overlap
+    return f, k_linear, k_linear / pair_params[a, b, PAIR_STIFFNESS_RATIO], 0.5 * f * overlap
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
@@ -86,8 +93,8 @@ def rotate_into_plane(x, y, z, nx, ny, nz):
     return x * scale, y * scale, z * scale, norm2_old
 
 
-@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
-def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def contact_force(law, pair_params, a, b, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
                   k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
     """One contact step of DESIGN.md §2.
 
@@ -106,10 +113,10 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
     dissipation in this step, damping dissipation in this step). The friction terms
     use YADE's plastic work (|F*| − |F|)|F|/k_t.
     """
-    f_el, k_n, k_t, e_normal = normal_force_and_stiffness(law, overlap, k_linear, r_star, params)
+    f_el, k_n, k_t, e_normal = normal_force_and_stiffness(law, overlap, k_linear, r_star, pair_params, a, b)
     v_rn = vrx * nx + vry * ny + vrz * nz
     v_rn_mid = v_rn + dvn
-    alpha = params[PAIR_DAMPING_RATIO_HERTZ] if law == HERTZ else params[PAIR_DAMPING_RATIO]
+    alpha = pair_params[a, b, PAIR_DAMPING_RATIO_HERTZ] if law == HERTZ else pair_params[a, b, PAIR_DAMPING_RATIO]
     c_n = 2.0 * alpha * math.sqrt(m_eff * k_n)
     f_n = f_el - c_n * v_rn_mid
     if f_n < 0.0:
@@ -125,7 +132,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
     fty += k_t * vty * dt
     ftz += k_t * vtz * dt
     ft2_trial = ftx * ftx + fty * fty + ftz * ftz
-    ft_max = params[PAIR_FRICTION] * f_n
+    ft_max = pair_params[a, b, PAIR_FRICTION] * f_n
     inv_kt = 1.0 / k_t
     friction_dissipation = 0.0
     if ft2_trial > ft_max * ft_max:  # slip (squares compared: no root while sticking)
@@ -144,7 +151,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
 
     # rolling resistance (elastic–plastic spring)
     e_rolling = 0.0
-    beta_r = params[PAIR_ROLLING_STIFFNESS]
+    beta_r = pair_params[a, b, PAIR_ROLLING_STIFFNESS]
     if beta_r > 0.0:
         k_r = beta_r * k_t * r_roll * r_roll
         inv_kr = 1.0 / k_r
@@ -154,7 +161,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
         mry += k_r * (wry - w_n * ny) * dt
         mrz += k_r * (wrz - w_n * nz) * dt
         mr2_trial = mrx * mrx + mry * mry + mrz * mrz
-        mr_max = params[PAIR_ROLLING_FRICTION] * f_n * r_roll
+        mr_max = pair_params[a, b, PAIR_ROLLING_FRICTION] * f_n * r_roll
         if mr2_trial > mr_max * mr_max:
             mr_trial = math.sqrt(mr2_trial)
             scale = mr_max / mr_trial
@@ -181,7 +188,7 @@ def contact_force(law, params, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
-def released_energy(law, params, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, mry, mrz):
+def released_energy(law, pair_params, a, b, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, mry, mrz):
     """Elastic energy left in the tangential/rolling springs when a contact opens.
 
     It is booked as friction dissipation (the springs are released), using the
@@ -190,9 +197,9 @@ def released_energy(law, params, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, m
     """
     if law == HERTZ:
         return 0.0
-    k_t = k_linear / params[PAIR_STIFFNESS_RATIO]
+    k_t = k_linear / pair_params[a, b, PAIR_STIFFNESS_RATIO]
     e = 0.5 * (ftx * ftx + fty * fty + ftz * ftz) / k_t
-    beta_r = params[PAIR_ROLLING_STIFFNESS]
+    beta_r = pair_params[a, b, PAIR_ROLLING_STIFFNESS]
     if beta_r > 0.0:
         k_r = beta_r * k_t * r_roll * r_roll
         e += 0.5 * (mrx * mrx + mry * mry + mrz * mrz) / k_r

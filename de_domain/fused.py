@@ -241,10 +241,9 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
                     mrx = hr[p, 0]; mry = hr[p, 1]; mrz = hr[p, 2]
                 if (ht[p, 0] != 0.0 or ht[p, 1] != 0.0 or ht[p, 2] != 0.0
                         or mrx != 0.0 or mry != 0.0 or mrz != 0.0):
-                    params = pair_params[mi, material[j]]
                     k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
                     r_red = ri * rj / (ri + rj)
-                    fr += released_energy(law, params, k_lin, r_red, r_red, ht[p, 0], ht[p, 1],
+                    fr += released_energy(law, pair_params, mi, material[j], k_lin, r_red, r_red, ht[p, 0], ht[p, 1],
                                           ht[p, 2], mrx, mry, mrz)
                     for k in range(3):
                         ht[p, k] = 0.0
@@ -266,7 +265,6 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
             vjx = vel[j, 0] - aj * (angvel[j, 1] * nz - angvel[j, 2] * ny)
             vjy = vel[j, 1] - aj * (angvel[j, 2] * nx - angvel[j, 0] * nz)
             vjz = vel[j, 2] - aj * (angvel[j, 0] * ny - angvel[j, 1] * nx)
-            params = pair_params[mi, material[j]]
             k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
             r_red = ri * rj / (ri + rj) if law == HERTZ or rolling else 0.0  # R* (Hertz), r̄ (rolling)
             m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
@@ -275,7 +273,7 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
             mrx = 0.0; mry = 0.0; mrz = 0.0
             if rolling:
                 mrx = hr[p, 0]; mry = hr[p, 1]; mrz = hr[p, 2]
-            res = contact_force(law, params, nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz, dvn,
+            res = contact_force(law, pair_params, mi, material[j], nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz, dvn,
                                 angvel[j, 0] - angvel[i, 0], angvel[j, 1] - angvel[i, 1],
                                 angvel[j, 2] - angvel[i, 2], k_lin, r_red, r_red, m_eff,
                                 ht[p, 0], ht[p, 1], ht[p, 2], mrx, mry, mrz, dt)
@@ -373,12 +371,11 @@ def _particle_block(b, in_order, has_constraints, law, dt, gravity, local_dampin
             for d in range(3):
                 dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
             overlap = r - dist
-            params = pair_params[material[i], wall_mat[w]]
             k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
             if overlap <= 0.0:
                 if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
                         or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
-                    we[4] += released_energy(law, params, k_lin, r, r, w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
+                    we[4] += released_energy(law, pair_params, material[i], wall_mat[w], k_lin, r, r, w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
                                              w_hist[c, 3], w_hist[c, 4], w_hist[c, 5])
                     for k in range(6):
                         w_hist[c, k] = 0.0
@@ -394,7 +391,7 @@ def _particle_block(b, in_order, has_constraints, law, dt, gravity, local_dampin
             vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
             vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
             dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-            res = contact_force(law, params, nx, ny, nz, overlap,
+            res = contact_force(law, pair_params, material[i], wall_mat[w], nx, ny, nz, overlap,
                                 wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
                                 -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
                                 k_lin, r, r, mass[i], w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
