@@ -461,6 +461,8 @@ def _particle_block(b, in_order, has_constraints, law, dt, gravity, local_dampin
         ez = pos[i, 2] - ref_pos[i, 2]
         d2 = ex * ex + ey * ey + ez * ez
         d2max = max(d2max, d2)
+        if d2 != d2:  # NaN: a diverged particle forces the rebuild, whose check stops the run
+            d2max = math.inf
     for k in range(6):
         e2[b, k] = we[k]
     e2[b, 6] = ke_t

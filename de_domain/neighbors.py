@@ -158,11 +158,13 @@ def transfer_history(old_keys, old_history, new_keys):
 
 @njit(cache=True)
 def max_displacement(pos, ref_pos, n_active):
-    """Largest |x − x_ref| (serial: exact and deterministic)."""
+    """Largest |x − x_ref| (serial: exact and deterministic); inf if any is NaN."""
     m = 0.0
     for i in range(n_active):
         d = (pos[i, 0] - ref_pos[i, 0]) ** 2 + (pos[i, 1] - ref_pos[i, 1]) ** 2 + (pos[i, 2] - ref_pos[i, 2]) ** 2
         m = max(m, d)
+        if d != d:
+            return math.inf
     return math.sqrt(m)
 
 
@@ -254,6 +256,11 @@ class NeighborList:
         if wall_point is None:
             wall_point = wall_normal = np.zeros((0, 3))
         n_owned = n_active if n_owned is None else n_owned
+        bad = np.flatnonzero(~np.isfinite(pos[:n_active]).all(axis=1))
+        if bad.size:  # the grid would be sized from NaN/inf: stop with the cause instead
+            raise FloatingPointError(f"neighbour build: {bad.size} particle position(s) are not finite (first: "
+                                     f"particle {bad[0]}); the run has diverged (time step above the critical "
+                                     "one, or a force or velocity set to NaN/inf?)")
         max_cells = max(1000, self.max_cells_per_particle * n_active)
         r_max = float(radius[:n_active].max())
         grid = build_cell_grid(pos, n_active, 2.0 * r_max + self.skin, max_cells)

@@ -159,3 +159,15 @@ def test_checkpoint_of_fused_engine_continues_bit_identically(tmp_path):
     for k in a:
         assert np.array_equal(a[k], b[k]), k
     assert engine.energy() == restored.energy()
+
+
+@pytest.mark.parametrize("steps", [1, 200])  # in place through perm, and the sorted copies
+def test_diverged_particle_stops_the_run_with_the_cause(steps):
+    """A NaN velocity (as from a time step far above the critical one) must not run on
+    silently nor size the cell grid from NaN: the next rebuild stops with the cause."""
+    engine = loose_pile()
+    engine.run(5)
+    engine.particles.vel[17, 0] = np.nan
+    with pytest.raises(FloatingPointError, match="particle 17"):
+        engine.run(steps)
+        engine.run(1)  # the rebuild comes at the start of the next call when the run ends on it
