@@ -38,7 +38,9 @@ histories and wall forces are bit-identical for any thread count, any skin (list
 rebuild frequency) and either storage path (in place through ``perm``, or spatially
 sorted copies); only the energy books are summed in block order. ``in_order`` says the arrays are
 the spatially sorted copies (index = perm position): the kernels then skip the
-``perm`` lookup (one dependent load less per pair).
+``perm`` lookup (one dependent load less per pair). Particle, pair and slot indices
+are cast to unsigned (``np.uint64``) before they index arrays: Numba then emits no
+negative-index wraparound (a compare and a select per array access; −10 % in region 1).
 
 Storage (CSR over perm positions ``s``): pairs of particle ``perm[s]`` as i-side are
 ``i_start[s]:i_start[s+1]`` (partner ``pair_j``, sorted by index); its j-side pairs
@@ -214,13 +216,13 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
     fr = 0.0
     dm = 0.0
     for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
-        i = s if in_order else perm[s]
+        i = np.uint64(s) if in_order else np.uint64(perm[s])
         ri = radius[i]
         mi = material[i]
         sfx = 0.0; sfy = 0.0; sfz = 0.0
         stx = 0.0; sty = 0.0; stz = 0.0
         for p in range(i_start[s], i_start[s + 1]):
-            j = pair_js[p] if in_order else perm[pair_js[p]]
+            j = np.uint64(pair_js[p]) if in_order else np.uint64(perm[pair_js[p]])
             dx = pos[j, 0] - pos[i, 0]
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
@@ -249,7 +251,7 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
                         ht[p, k] = 0.0
                         if rolling:
                             hr[p, k] = 0.0
-                q = j_slot[p]
+                q = np.uint64(j_slot[p])
                 for k in range(6):
                     j_rec[q, k] = 0.0
                 continue
@@ -285,7 +287,7 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
             cx = ny * fz - nz * fy
             cy = nz * fx - nx * fz
             cz = nx * fy - ny * fx
-            q = j_slot[p]  # j gets −F and (a_j n) × F − M_r
+            q = np.uint64(j_slot[p])  # j gets −F and (a_j n) × F − M_r
             j_rec[q, 0] = -fx
             j_rec[q, 1] = -fy
             j_rec[q, 2] = -fz
@@ -353,14 +355,14 @@ def _particle_block(b, in_order, has_constraints, law, dt, gravity, local_dampin
     boundary = 0.0
     d2max = 0.0
     for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
-        i = s if in_order else perm[s]
-        if i >= n_owned:
+        i = np.uint64(s) if in_order else np.uint64(perm[s])
+        if i >= np.uint64(n_owned):
             continue
         # the i-side sums of region 1, continued with the j-side records (ascending i);
         # a pair not in contact has a zero record
         fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
         tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
-        for q in range(j_start[s], j_start[s + 1]):
+        for q in range(np.uint64(j_start[s]), np.uint64(j_start[s + 1])):
             fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
             tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
         r = radius[i]
