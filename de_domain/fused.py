@@ -275,7 +275,8 @@ def _pair_block(b, in_order, law, dt, pos, vel, accel, angvel, radius, mass, mat
             mrx = 0.0; mry = 0.0; mrz = 0.0
             if rolling:
                 mrx = hr[p, 0]; mry = hr[p, 1]; mrz = hr[p, 2]
-            res = contact_force(law, pair_params, mi, material[j], nx, ny, nz, overlap, vjx - vix, vjy - viy, vjz - viz, dvn,
+            res = contact_force(law, pair_params, mi, material[j], nx, ny, nz, overlap,
+                                vjx - vix, vjy - viy, vjz - viz, dvn,
                                 angvel[j, 0] - angvel[i, 0], angvel[j, 1] - angvel[i, 1],
                                 angvel[j, 2] - angvel[i, 2], k_lin, r_red, r_red, m_eff,
                                 ht[p, 0], ht[p, 1], ht[p, 2], mrx, mry, mrz, dt)
@@ -377,7 +378,8 @@ def _particle_block(b, in_order, has_constraints, law, dt, gravity, local_dampin
             if overlap <= 0.0:
                 if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
                         or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
-                    we[4] += released_energy(law, pair_params, material[i], wall_mat[w], k_lin, r, r, w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
+                    we[4] += released_energy(law, pair_params, material[i], wall_mat[w], k_lin, r, r,
+                                             w_hist[c, 0], w_hist[c, 1], w_hist[c, 2],
                                              w_hist[c, 3], w_hist[c, 4], w_hist[c, 5])
                     for k in range(6):
                         w_hist[c, k] = 0.0

@@ -294,7 +294,8 @@ def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, mate
         k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
         if not active[s]:
             if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
-                energy[4] += released_energy(law, pair_params, material[i], tri_mat[t], k_lin, r, r, h[0], h[1], h[2], h[3], h[4], h[5])
+                energy[4] += released_energy(law, pair_params, material[i], tri_mat[t], k_lin, r, r,
+                                             h[0], h[1], h[2], h[3], h[4], h[5])
                 h[:] = 0.0
             cand_force[s, :] = 0.0
             continue
@@ -333,7 +334,8 @@ def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, mate
         vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
         vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
         dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-        res = contact_force(law, pair_params, material[i], tri_mat[t], nx, ny, nz, overlap, vfx - vcx, vfy - vcy, vfz - vcz, dvn,
+        res = contact_force(law, pair_params, material[i], tri_mat[t], nx, ny, nz, overlap,
+                            vfx - vcx, vfy - vcy, vfz - vcz, dvn,
                             -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
                             k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
         fx, fy, fz = res[0], res[1], res[2]
