@@ -1,5 +1,5 @@
 """de_domain — Numba discrete element method of spheres, plane walls and triangle
-facets (DESIGN.md §2). Knows nothing of DOLFINx.
+facets (docs/design.md §2). Knows nothing of DOLFINx.
 
 Public API
 ----------
@@ -51,15 +51,18 @@ Numba threading defaults (omp layer; a short spin of idle workers when the threa
 the cores, ``OMP_WAIT_POLICY=PASSIVE`` when they do not) on import, so
 import de_domain before the first ``numba.set_num_threads``/parallel call.
 
-Developer notes: kernels are ``numba.njit(cache=True)``; Numba's cache does not
-notice when a *called* kernel in another module changes, so after editing e.g.
-``contact_laws.py`` remove ``de_domain/__pycache__`` (stale callers otherwise keep
-the old code). Results are bit-identical for any Numba thread count, any Verlet
+Developer notes: kernels are ``numba.njit(cache=True)``, and their cache entries are
+stamped with a digest of every de_domain source (``de_domain.kernel_cache``): an edit
+anywhere in the package recompiles every kernel, so a cached caller never runs a
+stale callee. The kernels take their state as the named tuples of
+``de_domain.state``. Results are bit-identical for any Numba thread count, any Verlet
 rebuild frequency and either storage path (fixed-order reductions, canonically
 sorted neighbour lists; tests/dem/test_fused_kernels.py).
 """
+from . import kernel_cache as _kernel_cache
 from . import threading as _threading
 
+_kernel_cache.install()  # before the first njit(cache=True) kernel is defined (see de_domain/kernel_cache.py)
 _threading.configure()  # before the first parallel launch (see de_domain/threading.py)
 
 from .engine import Engine  # noqa: E402

@@ -1,11 +1,11 @@
-"""Contact laws for one contact (DESIGN.md §2), shared by sphere–sphere, sphere–wall
+"""Contact laws for one contact (docs/design.md §2.2–2.7), shared by sphere–sphere, sphere–wall
 and sphere–facet kernels.
 
-Conventions (DESIGN.md §2): ``n`` points from body i (always a sphere) to body j
+Conventions (docs/design.md §2.2): ``n`` points from body i (always a sphere) to body j
 (sphere, wall or facet); ``overlap`` δ > 0 in contact; ``v_r`` is the velocity of
 j's contact point relative to i's; the returned force is the force **on i** (j gets
 the opposite). The rolling moment ``M_r`` is stored as the moment on i (j gets −M_r);
-it is the −k_r Δθ_r spring of DESIGN.md §2 seen from j.
+it is the −k_r Δθ_r spring of docs/design.md §2.7 seen from j.
 
 Law selection is an integer (``LINEAR`` or ``HERTZ``) resolved in one place,
 :func:`normal_force_and_stiffness`; every kernel calls :func:`contact_force`.
@@ -18,6 +18,7 @@ would pass 27 arguments and return 14 values through memory per contact; inlined
 takes that kernel's ``FASTMATH`` flags (the same as its own).
 """
 import math
+from collections import namedtuple
 
 from numba import njit
 
@@ -38,6 +39,21 @@ FASTMATH = {"contract", "arcp", "nsz"}
 LINEAR = 0
 HERTZ = 1
 LAWS = {"linear": LINEAR, "hertz": HERTZ}
+
+ContactGeometry = namedtuple("ContactGeometry", "nx ny nz overlap")
+"""Unit normal n from body i to body j and the overlap δ (> 0 in contact)."""
+RelativeMotion = namedtuple("RelativeMotion", "vx vy vz dvn wx wy wz")
+"""v_r: velocity of j's contact point relative to i's (v^{n−½}); ``dvn`` = ½Δt (a_j − a_i)·n,
+the step from v_rn^{n−½} to v_rn at tⁿ; w = ω_j − ω_i."""
+ContactBodies = namedtuple("ContactBodies", "k_linear r_star r_roll m_eff")
+"""Linear normal stiffness, R* (Hertz), r̄ (rolling arm) and effective mass m* of the pair."""
+Springs = namedtuple("Springs", "ftx fty ftz mrx mry mrz")
+"""Contact history: tangential spring force on i (3), rolling moment on i (3)."""
+ContactEnergy = namedtuple("ContactEnergy", "normal tangential rolling friction damping")
+"""Elastic energy stored at tⁿ (normal, tangential, rolling) and this step's dissipation
+(friction incl. rolling plasticity, normal damping), in the order of ``state.E_*``."""
+ContactResult = namedtuple("ContactResult", "fx fy fz springs energy")
+"""Force on i, the updated history and the energy terms of one contact step."""
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
@@ -68,7 +84,7 @@ def normal_force_and_stiffness(law, overlap, k_linear, r_star, pair_params, a, b
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def rotate_into_plane(x, y, z, nx, ny, nz):
     """Project a stored tangential vector on the plane normal to n and rescale it to its
-    old magnitude (rigid rotation of the spring with the contact, DESIGN.md §2).
+    old magnitude (rigid rotation of the spring with the contact, docs/design.md §2.6).
 
     The scale is |x|/|x − (x·n)n| = (1 − q)^(−½), q = (x·n)²/|x|². For the small turns of
     one step (q < 1e-6) it is the series 1 + q/2 + 3q²/8 (truncation < 4e-19, below
@@ -95,7 +111,7 @@ def rotate_into_plane(x, y, z, nx, ny, nz):
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def rolling_moment(k_r, mr_max, nx, ny, nz, wrx, wry, wrz, mrx, mry, mrz, dt):
-    """Rolling resistance, an elastic–plastic spring (DESIGN.md §2): the stored moment on i
+    """Rolling resistance, an elastic–plastic spring (docs/design.md §2.7): the stored moment on i
     rotated into the tangent plane, M_r* = M_r + k_r Δθ_r with Δθ_r = (ω_j − ω_i)Δt
     projected on that plane, and |M_r| ≤ ``mr_max`` = η_r f_n r̄. Returns the moment, its
     elastic energy and the plastic work of this step (as for the tangential spring)."""
@@ -125,9 +141,8 @@ def _into_the_pair_kernel(call, caller_ir, callee_ir):
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline=_into_the_pair_kernel)
-def contact_force(law, pair_params, a, b, nx, ny, nz, overlap, vrx, vry, vrz, dvn, wrx, wry, wrz,
-                  k_linear, r_star, r_roll, m_eff, ftx, fty, ftz, mrx, mry, mrz, dt):
-    """One contact step of DESIGN.md §2.
+def contact_force(law, pair_params, a, b, geometry, motion, bodies, springs, dt):
+    """One contact step of docs/design.md §2.3–2.7.
 
     Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0, with
     α calibrated per law so that the rebound equals the set restitution. The
@@ -139,11 +154,14 @@ def contact_force(law, pair_params, a, b, nx, ny, nz, overlap, vrx, vry, vrz, dv
     Rolling: M_r* = M_r + k_r Δθ_r (moment on i, Δθ_r = (ω_j − ω_i)Δt projected on
     the tangent plane), k_r = β_r k_t r̄², |M_r| ≤ η_r f_n r̄.
 
-    ``wr`` = ω_j − ω_i. Returns (fx, fy, fz) force on i, new (ft), new (mr), and the
-    energy terms (normal elastic, tangential elastic, rolling elastic, friction
-    dissipation in this step, damping dissipation in this step). The friction terms
-    use YADE's plastic work (|F*| − |F|)|F|/k_t.
+    Materials ``a`` (body i) and ``b`` (body j); the arguments are the named tuples
+    above. Returns a :data:`ContactResult`: the force on i, the new springs and the
+    energy terms. The friction terms use YADE's plastic work (|F*| − |F|)|F|/k_t.
     """
+    nx, ny, nz, overlap = geometry
+    vrx, vry, vrz, dvn, wrx, wry, wrz = motion
+    k_linear, r_star, r_roll, m_eff = bodies
+    ftx, fty, ftz, mrx, mry, mrz = springs
     f_el, k_n, k_t, e_normal = normal_force_and_stiffness(law, overlap, k_linear, r_star, pair_params, a, b)
     v_rn = vrx * nx + vry * ny + vrz * nz
     v_rn_mid = v_rn + dvn
@@ -195,12 +213,12 @@ def contact_force(law, pair_params, a, b, nx, ny, nz, overlap, vrx, vry, vrz, dv
     fx = -f_n * nx + ftx
     fy = -f_n * ny + fty
     fz = -f_n * nz + ftz
-    return (fx, fy, fz, ftx, fty, ftz, mrx, mry, mrz,
-            e_normal, e_tangential, e_rolling, friction_dissipation, damping_dissipation)
+    return ContactResult(fx, fy, fz, Springs(ftx, fty, ftz, mrx, mry, mrz),
+                         ContactEnergy(e_normal, e_tangential, e_rolling, friction_dissipation, damping_dissipation))
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
-def released_energy(law, pair_params, a, b, k_linear, r_star, r_roll, ftx, fty, ftz, mrx, mry, mrz):
+def released_energy(law, pair_params, a, b, k_linear, r_roll, springs):
     """Elastic energy left in the tangential/rolling springs when a contact opens.
 
     It is booked as friction dissipation (the springs are released), using the
@@ -209,6 +227,7 @@ def released_energy(law, pair_params, a, b, k_linear, r_star, r_roll, ftx, fty, 
     """
     if law == HERTZ:
         return 0.0
+    ftx, fty, ftz, mrx, mry, mrz = springs
     k_t = k_linear / pair_params[a, b, PAIR_STIFFNESS_RATIO]
     e = 0.5 * (ftx * ftx + fty * fty + ftz * ftz) / k_t
     beta_r = pair_params[a, b, PAIR_ROLLING_STIFFNESS]

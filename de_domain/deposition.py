@@ -1,4 +1,4 @@
-"""Specimen generation to a target void ratio (DESIGN.md §3).
+"""Specimen generation to a target void ratio (docs/design.md §3.2).
 
 Two methods, both in a square box of side ``L`` and final height ``H`` with frictionless
 side walls, a rough bottom and a rough compaction plate on top:
@@ -350,7 +350,7 @@ def under_compaction(diameters, s: GenerationSettings, log=None):
     engine = None
     steps = 0
     stages = []
-    for k, (group, z_k) in enumerate(zip(groups, tops), start=1):
+    for k, (group, z_k) in enumerate(zip(groups, tops, strict=True), start=1):
         r_new = 0.5 * group
         surface = float(np.max(pos[:, 2] + radii)) if len(radii) else 0.0
         cloud_height = np.sum(np.pi / 6 * group**3) / (s.cloud_solid_fraction * L * L)

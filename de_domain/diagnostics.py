@@ -1,4 +1,4 @@
-"""Standard DEM diagnostics (DESIGN.md §2 last paragraph). Every function takes the
+"""Standard DEM diagnostics (docs/design.md §2.16). Every function takes the
 :class:`~de_domain.engine.Engine` (its particles and last-step contacts) and, where
 it makes sense, a region.
 
@@ -147,7 +147,7 @@ def porosity(engine, region):
 
 
 def void_ratio(engine, region):
-    """e = V_voids / V_solids = n / (1 − n) (DESIGN.md §3)."""
+    """e = V_voids / V_solids = n / (1 − n) (docs/design.md §3.3)."""
     solid = solid_volume(engine, region)
     return (region.volume - solid) / solid if solid > 0 else np.inf
 
@@ -169,11 +169,8 @@ def love_weber_stress(engine, region):
         arm = c["wall_point"][sel] - p.pos[c["wall_particle"][sel]]
         sigma += np.einsum("ci,cj->ij", -c["wall_force"][sel], arm)
     if len(c["facet_particle"]):
-        tri = engine._triangles[c["facet_triangle"]]
-        vertices = np.concatenate([m.vertices for m in engine.facets])
-        point = np.einsum("ca,cad->cd", c["facet_lambda"], vertices[tri])
-        sel = region.contains(point)
-        arm = point[sel] - p.pos[c["facet_particle"][sel]]
+        sel = region.contains(c["facet_point"])
+        arm = c["facet_point"][sel] - p.pos[c["facet_particle"][sel]]
         sigma += np.einsum("ci,cj->ij", -c["facet_force"][sel], arm)
     return sigma / region.volume
 

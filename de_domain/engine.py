@@ -1,4 +1,4 @@
-"""The DEM step sequence (DESIGN.md §2; YADE-style visible engine list).
+"""The DEM step sequence (docs/design.md §2.12; YADE-style visible engine list).
 
 One step is, in order (:mod:`de_domain.fused` runs 3–7 for many steps in one
 compiled loop with two parallel regions per step; 1–2 happen in Python when a run
@@ -24,6 +24,24 @@ from .contact_laws import HERTZ, LAWS
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
 from .neighbors import NeighborList
 from .particles import ARRAY_FIELDS, Particles
+from .state import (
+    BOOK_ACCUMULATED,
+    BOOK_FIRST,
+    BOOK_INITIAL_TOTAL,
+    BOOK_INITIALISED,
+    BOOK_LAST,
+    BOOK_STATE,
+    CLOCK_STEPS,
+    CLOCK_TIME,
+    N_BOOKS,
+    ContactParameters,
+    FacetCandidates,
+    FacetMeshes,
+    PairList,
+    ParticleArrays,
+    PlaneWalls,
+    StepSettings,
+)
 from .walls import FacetMesh, PlaneWall
 
 SORTED_MIN_STEPS = 8  # runs at least this long use spatially sorted copies of the particle arrays
@@ -39,7 +57,7 @@ class Engine:
 
     ``dt=None`` takes ``safety_factor × critical_timestep()``. ``skin`` defaults to
     0.2 × the mean radius. ``local_damping`` α_b and ``viscous_damping`` α_v [1/s]
-    are the background damping of DESIGN.md §2.
+    are the background damping of docs/design.md §2.13.
     """
 
     def __init__(self, particles: Particles, materials, walls=(), facets=(), contact_law="linear",
@@ -67,6 +85,10 @@ class Engine:
         self.density, self.young, self.poisson = material_arrays(self.materials)
         self.walls = list(walls)
         self.facets = list(facets)
+        # where the engine last left each wall and facet vertex: a move made from outside
+        # between two runs is the difference (booked as boundary work)
+        self._wall_points_known = [w.point.copy() for w in self.walls]
+        self._facet_vertices_known = [m.vertices.copy() for m in self.facets]
         self.gravity = np.array(gravity, dtype=np.float64).reshape(3)
         self.safety_factor = float(safety_factor)
         self.local_damping = float(local_damping)
@@ -94,7 +116,7 @@ class Engine:
         new = [m if isinstance(m, Material) else Material(**m) for m in materials]
         if len(new) != len(self.materials):
             raise ValueError(f"Engine.set_materials: {len(new)} materials given, the engine has {len(self.materials)}")
-        for k, (a, b) in enumerate(zip(self.materials, new)):
+        for k, (a, b) in enumerate(zip(self.materials, new, strict=True)):
             if (a.density, a.young, a.poisson) != (b.density, b.young, b.poisson):
                 raise ValueError(f"Engine.set_materials: material {k} changes density, young or poisson; "
                                  "only contact parameters may change")
@@ -116,7 +138,6 @@ class Engine:
             v_off += mesh.vertices.shape[0]
             e_off += mesh.n_edges
             self._vertex_offsets.append(v_off)
-            mesh._engine_vertices = mesh.vertices.copy()
         self._triangles = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
         self._triangle_edges = np.concatenate(edges) if edges else np.zeros((0, 3), np.int64)
         self._triangle_material = np.concatenate(mats) if mats else np.zeros(0, np.int32)
@@ -145,7 +166,7 @@ class Engine:
 
     def critical_timestep(self):
         """Δt_crit: linear law min √(m_i/k_n,i), k_n,i = 2 E r_i (a sphere against its
-        equal); Hertz law the P-wave estimate min r √(ρ/E) (DESIGN.md §2)."""
+        equal); Hertz law the P-wave estimate min r √(ρ/E) (docs/design.md §2.14)."""
         p = self.particles
         if p.n == 0:
             return math.inf
@@ -190,39 +211,49 @@ class Engine:
             nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, p.n_owned, new_order=refresh)
             self._allocate_pair_arrays(nl.pair_js.size)
 
-    def _kernel_args(self, wall_point, wall_normal, wall_vel, wall_mat, facet_state, sorted_copies=None):
+    def _kernel_state(self, walls, facet_state, sorted_copies):
+        """The named tuples of :mod:`de_domain.state` for :func:`fused.advance`, over the
+        public arrays (through ``perm``) or over the spatially sorted copies."""
         p = self.particles
         nl = self.neighbors
-        has_constraints = bool(p.blocked.any() or p.prescribed.any())
-        if sorted_copies is None:
-            perm, arrays = nl.perm, (p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia,
-                                     p.material, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
-                                     p.torque)
-            ref_pos = nl.ref_pos
+        in_order = sorted_copies is not None
+        settings = StepSettings(law=self.law, dt=self.dt, gravity=self.gravity, local_damping=self.local_damping,
+                                viscous_damping=self.viscous_damping, n_owned=int(p.n_owned),
+                                has_constraints=bool(p.blocked.any() or p.prescribed.any()), rolling=nl.rolling,
+                                in_order=in_order, skin=float(nl.skin))
+        if in_order:
+            particles = sorted_copies
+            perm = np.arange(p.n, dtype=np.int32)
         else:
-            perm, arrays, ref_pos = sorted_copies
+            particles = ParticleArrays(p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia,
+                                       p.material, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
+                                       p.torque, nl.ref_pos)
+            perm = nl.perm
+        pairs = PairList(perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_slot, nl.ht, nl.hr, self.j_rec,
+                         self.pair_ov)
+        point, normal, velocity, material = walls
+        plane_walls = PlaneWalls(point, normal, velocity, material, nl.ref_wall_point, nl.w_start, nl.w_idx,
+                                 nl.w_hist, nl.w_fn, nl.w_force)
         vertices, vertex_vel, vertex_impulse = facet_state
         ref_vertices = nl.ref_vertices if nl.ref_vertices is not None else vertices
-        return ((has_constraints, nl.rolling, self.law, self.dt, self.gravity, self.local_damping,
-                 self.viscous_damping, p.n_owned) + arrays
-                + (self.young, self.pair_params, perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_slot, nl.ht, nl.hr,
-                   self.j_rec, self.pair_ov, wall_point, wall_normal, wall_vel, wall_mat, nl.w_start, nl.w_idx,
-                   nl.w_hist, nl.w_fn, nl.w_force, nl.perm, vertices, vertex_vel, self._triangles,
-                   self._triangle_edges, self._triangle_material, self._triangle_mesh, nl.f_start, nl.f_tri,
-                   nl.facet_history, self.facet_active, self.facet_force, self.facet_lambda, self._vertex_force,
-                   vertex_impulse, ref_pos, nl.ref_wall_point, ref_vertices, nl.skin))
+        meshes = FacetMeshes(vertices, vertex_vel, self._triangles, self._triangle_edges, self._triangle_material,
+                             self._triangle_mesh, self._vertex_force, vertex_impulse, ref_vertices)
+        candidates = FacetCandidates(nl.perm, nl.f_start, nl.f_tri, nl.facet_history, self.facet_active,
+                                     self.facet_force, self.facet_lambda)
+        return (settings, particles, ContactParameters(self.young, self.pair_params), pairs, plane_walls, meshes,
+                candidates)
 
     def _sorted_copies(self):
         """Particle arrays gathered into the spatial order (index = perm position)."""
         p = self.particles
         perm = self.neighbors.perm
-        has_constraints = bool(p.blocked.any() or p.prescribed.any())
-        constraints = ((p.blocked[perm], p.prescribed[perm], p.prescribed_velocity[perm]) if has_constraints
-                       else (p.blocked, p.prescribed, p.prescribed_velocity))  # not read without constraints
-        arrays = (p.pos[perm], p.vel[perm], self.acceleration[perm], p.angvel[perm], p.radius[perm],
-                  p.mass[perm], p.inertia[perm], p.material[perm]) + constraints + (np.empty((p.n, 3)),
-                                                                                    np.empty((p.n, 3)))
-        return np.arange(p.n, dtype=np.int32), arrays, self.neighbors.ref_pos[perm]
+        if p.blocked.any() or p.prescribed.any():
+            constraints = (p.blocked[perm], p.prescribed[perm], p.prescribed_velocity[perm])
+        else:  # not read without constraints
+            constraints = (p.blocked, p.prescribed, p.prescribed_velocity)
+        return ParticleArrays(p.pos[perm], p.vel[perm], self.acceleration[perm], p.angvel[perm], p.radius[perm],
+                              p.mass[perm], p.inertia[perm], p.material[perm], *constraints,
+                              np.empty((p.n, 3)), np.empty((p.n, 3)), self.neighbors.ref_pos[perm])
 
     def _advance(self, nsteps):
         """Fused steps until ``nsteps`` are done or the lists need a rebuild.
@@ -231,28 +262,28 @@ class Engine:
         the spatial order (gathered before, scattered after: cache-friendly); shorter
         ones in place through ``perm``. Both give bit-identical results."""
         p = self.particles
-        wp, wn, wv, wm = self._wall_arrays()
-        clock = np.array([self.time, 0.0])
+        walls = self._wall_arrays()
+        clock = np.zeros(2)
+        clock[CLOCK_TIME] = self.time
         copies = None
         if nsteps >= SORTED_MIN_STEPS and p.n_owned == p.n:
             copies = self._sorted_copies()
         vertices, vertex_vel = self._gather_facets()
         impulse = (np.concatenate([m.vertex_impulse for m in self.facets]) if self.facets else np.zeros((0, 3)))
-        fused.advance(nsteps, copies is not None, *self._kernel_args(wp, wn, wv, wm, (vertices, vertex_vel, impulse), copies),
-                      self._books, clock)
+        fused.advance(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies), self._books,
+                      clock)
         if copies is not None:
             perm = self.neighbors.perm
-            a = copies[1]
-            p.pos[perm] = a[0]
-            p.vel[perm] = a[1]
-            self.acceleration[perm] = a[2]
-            p.angvel[perm] = a[3]
-            p.force[perm] = a[11]
-            p.torque[perm] = a[12]
-        done = int(clock[1])
-        self.time = float(clock[0])
+            p.pos[perm] = copies.pos
+            p.vel[perm] = copies.vel
+            self.acceleration[perm] = copies.accel
+            p.angvel[perm] = copies.angvel
+            p.force[perm] = copies.force
+            p.torque[perm] = copies.torque
+        done = int(clock[CLOCK_STEPS])
+        self.time = float(clock[CLOCK_TIME])
         self.step_count += done
-        self._finish_walls(wp)
+        self._finish_walls(walls[0])
         self._finish_facets(vertices, impulse)
         return done
 
@@ -264,7 +295,7 @@ class Engine:
         for w, wall in enumerate(self.walls):
             wall.force = totals[w].copy()
             wall.point = wall_point[w].copy()
-            wall._engine_point = wall.point.copy()
+            self._wall_points_known[w] = wall.point.copy()
 
     # ------------------------------------------------------------------ boundaries
     def _gather_facets(self):
@@ -279,7 +310,7 @@ class Engine:
         for k, mesh in enumerate(self.facets):
             part = slice(self._vertex_offsets[k], self._vertex_offsets[k + 1])
             mesh.vertices[:] = vertices[part]
-            mesh._engine_vertices = mesh.vertices.copy()
+            self._facet_vertices_known[k] = mesh.vertices.copy()
             mesh.vertex_force = self._vertex_force[part].copy()
             mesh.vertex_impulse[:] = impulse[part]
             mesh.force = mesh.vertex_force.sum(axis=0)
@@ -287,30 +318,30 @@ class Engine:
     def _book_boundary_jumps(self):
         """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force)."""
         work = 0.0
-        for wall in self.walls:
-            jump = wall.point - wall._engine_point
+        for w, wall in enumerate(self.walls):
+            jump = wall.point - self._wall_points_known[w]
             if np.any(jump != 0.0):
                 work -= float(wall.force @ jump)
-                wall._engine_point = wall.point.copy()
-        for mesh in self.facets:
-            jump = mesh.vertices - mesh._engine_vertices
+                self._wall_points_known[w] = wall.point.copy()
+        for k, mesh in enumerate(self.facets):
+            jump = mesh.vertices - self._facet_vertices_known[k]
             if np.any(jump != 0.0):
                 work -= float(np.sum(mesh.vertex_force * jump))
-                mesh._engine_vertices = mesh.vertices.copy()
+                self._facet_vertices_known[k] = mesh.vertices.copy()
         self._jump_work += work
 
     # ------------------------------------------------------------------ energy
     def _energy_reset(self):
-        # state (STATE_TERMS), accumulated / first / last increments (RATE_TERMS),
-        # initial total, initialised flag (layout of fused.record_energy)
-        self._books = np.zeros(fused.N_BOOKS)
+        # slots state.BOOK_*: state (STATE_TERMS), accumulated / first / last rate terms
+        # (RATE_TERMS), initial total, initialised flag (fused.record_energy writes them)
+        self._books = np.zeros(N_BOOKS)
         self._jump_work = 0.0
 
     def _book(self, offset, terms):
         return {k: float(self._books[offset + m]) for m, k in enumerate(terms)}
 
     def energy(self):
-        """Energy balance at time tⁿ of the last step (DESIGN.md §2 diagnostics).
+        """Energy balance at time tⁿ of the last step (docs/design.md §2.15).
 
         State terms (kinetic at v^n, gravity −Σ m g·x, elastic normal/tangential/
         rolling), cumulative work in (walls/facets, prescribed DOFs) and dissipation
@@ -318,22 +349,26 @@ class Engine:
         integrated with the trapezoidal rule over the recorded steps, and
         ``residual = total − (initial_total + work − dissipated)``.
         """
-        initialised = self._books[22] != 0.0
+        initialised = self._books[BOOK_INITIALISED] != 0.0
         if not initialised:  # before the first step: current velocities, no contacts yet
             p = self.particles
             n = p.n_owned
-            self._books[0] = float(0.5 * np.sum(p.mass[:n, None] * p.vel[:n] ** 2))
-            self._books[1] = float(0.5 * np.sum(p.inertia[:n, None] * p.angvel[:n] ** 2))
-            self._books[2] = float(-np.sum(p.mass[:n] * (p.pos[:n] @ self.gravity)))
-        state = self._book(0, STATE_TERMS)
-        acc, first, last = self._book(6, RATE_TERMS), self._book(11, RATE_TERMS), self._book(16, RATE_TERMS)
+            kinetic = (0.5 * np.sum(p.mass[:n, None] * p.vel[:n] ** 2),
+                       0.5 * np.sum(p.inertia[:n, None] * p.angvel[:n] ** 2),
+                       -np.sum(p.mass[:n] * (p.pos[:n] @ self.gravity)))
+            for k, value in enumerate(kinetic):  # kinetic_translational, kinetic_rotational, gravity
+                self._books[BOOK_STATE + k] = float(value)
+        state = self._book(BOOK_STATE, STATE_TERMS)
+        acc = self._book(BOOK_ACCUMULATED, RATE_TERMS)
+        first = self._book(BOOK_FIRST, RATE_TERMS)
+        last = self._book(BOOK_LAST, RATE_TERMS)
         out = dict(state)
         out["kinetic"] = out["kinetic_translational"] + out["kinetic_rotational"]
         for k in RATE_TERMS:
             out[k] = acc[k] - 0.5 * (first[k] + last[k])
         out["work_walls"] += self._jump_work
         out["total"] = sum(state.values())
-        out["initial_total"] = float(self._books[21]) if initialised else out["total"]
+        out["initial_total"] = float(self._books[BOOK_INITIAL_TOTAL]) if initialised else out["total"]
         out["work"] = sum(out[k] for k in WORK_TERMS)
         out["dissipated"] = sum(out[k] for k in DISSIPATION_TERMS)
         out["residual"] = out["total"] - (out["initial_total"] + out["work"] - out["dissipated"])
@@ -385,7 +420,8 @@ class Engine:
         ``branch`` (x_j − x_i), ``point`` (overlap midpoint).
         Walls: ``wall_particle``, ``wall_index``, ``wall_force`` (on the particle),
         ``wall_point`` (overlap midpoint). Facets: ``facet_particle``, ``facet_triangle`` (global
-        index over ``facets``), ``facet_force`` (on the particle), ``facet_lambda``.
+        index over ``facets``), ``facet_force`` (on the particle), ``facet_lambda``
+        (barycentric weights of the closest point), ``facet_point`` (the closest point).
         """
         p = self.particles
         nl = self.neighbors
@@ -417,8 +453,11 @@ class Engine:
         out.update(wall_particle=wp, wall_index=wi, wall_force=wf, wall_point=wpoint)
         fa = np.any(self.facet_force != 0.0, axis=1)
         particles_of = np.repeat(np.arange(nl.f_start.size - 1), np.diff(nl.f_start))
-        out.update(facet_particle=particles_of[fa], facet_triangle=nl.f_tri[fa].astype(np.int64),
-                   facet_force=self.facet_force[fa], facet_lambda=self.facet_lambda[fa])
+        triangle = nl.f_tri[fa].astype(np.int64)
+        vertices = np.concatenate([m.vertices for m in self.facets]) if self.facets else np.zeros((0, 3))
+        point = np.einsum("ca,cad->cd", self.facet_lambda[fa], vertices[self._triangles[triangle]])
+        out.update(facet_particle=particles_of[fa], facet_triangle=triangle, facet_force=self.facet_force[fa],
+                   facet_lambda=self.facet_lambda[fa], facet_point=point)
         return out
 
     # ------------------------------------------------------------------ checkpoint
@@ -428,14 +467,15 @@ class Engine:
         data["n_owned"] = np.int64(self.particles.n_owned)
         for field in dataclasses.fields(Material):
             data[f"mat_{field.name}"] = np.array([getattr(m, field.name) for m in self.materials])
-        for k in ("point", "normal", "velocity", "force", "_engine_point"):
+        for k in ("point", "normal", "velocity", "force"):
             data[f"wall_{k}"] = np.array([getattr(w, k) for w in self.walls]).reshape(-1, 3)
+        data["wall_point_known"] = np.array(self._wall_points_known).reshape(-1, 3)
         data["wall_material"] = np.array([w.material for w in self.walls], np.int64)
         data["n_facets"] = np.int64(len(self.facets))
         for k, mesh in enumerate(self.facets):
-            for name in ("vertices", "triangles", "vertex_velocity", "vertex_force", "vertex_impulse",
-                         "force", "_engine_vertices"):
+            for name in ("vertices", "triangles", "vertex_velocity", "vertex_force", "vertex_impulse", "force"):
                 data[f"facet{k}_{name}"] = getattr(mesh, name)
+            data[f"facet{k}_vertices_known"] = self._facet_vertices_known[k]
             data[f"facet{k}_material"] = np.int64(mesh.material)
             if mesh.source_nodes is not None:
                 data[f"facet{k}_source_nodes"] = mesh.source_nodes
@@ -466,7 +506,6 @@ class Engine:
                              d["wall_velocity"][w])
             wall.normal = d["wall_normal"][w].copy()
             wall.force = d["wall_force"][w].copy()
-            wall._engine_point = d["wall__engine_point"][w].copy()
             walls.append(wall)
         facets = []
         for k in range(int(d["n_facets"])):
@@ -479,8 +518,8 @@ class Engine:
         engine = cls(particles, materials, walls, facets, contact_law=str(d["contact_law"]),
                      gravity=d["gravity"], dt=dt, safety_factor=safety, local_damping=local,
                      viscous_damping=viscous, skin=float(d["nl_skin"]))
-        for k, mesh in enumerate(facets):
-            mesh._engine_vertices = d[f"facet{k}__engine_vertices"].copy()
+        engine._wall_points_known = [point.copy() for point in d["wall_point_known"]]
+        engine._facet_vertices_known = [d[f"facet{k}_vertices_known"].copy() for k in range(len(facets))]
         if "nl_perm" in d:
             engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
         engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)

@@ -1,4 +1,4 @@
-"""Materials and per-pair contact parameter tables (DESIGN.md §2).
+"""Materials and per-pair contact parameter tables (docs/design.md §2.8).
 
 A :class:`Material` holds the inputs of the thesis Table 3.2. The engine turns a
 list of materials into dense ``(n_mat, n_mat, N_PAIR)`` tables once, so the contact
@@ -14,7 +14,7 @@ Pair mixing rules (documented choices, YADE-like):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, asdict
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from numba import njit
@@ -40,7 +40,7 @@ def _check(name, value, low, high, low_open=False):
 
 @dataclass(frozen=True)
 class Material:
-    """Sphere/wall material (thesis Table 3.2, DESIGN.md §2).
+    """Sphere/wall material (thesis Table 3.2, docs/design.md §2.8).
 
     density [kg/m³], young E [Pa], poisson ν, friction μ (Coulomb coefficient),
     restitution e ∈ (0, 1], stiffness_ratio κ = k_n/k_t, rolling_stiffness β_r
@@ -90,9 +90,9 @@ def restitution_of_damping_ratio(alpha: float) -> float:
 
 
 def damping_ratio(restitution: float) -> float:
-    """Damping ratio α of c_n = 2α√(m* k_n) that gives the restitution e (DESIGN.md §2).
+    """Damping ratio α of c_n = 2α√(m* k_n) that gives the restitution e (docs/design.md §2.5, §7.1).
 
-    DESIGN.md's α = −ln e/√(π² + ln² e) assumes the dashpot may pull at the end of
+    The starting reference's α = −ln e/√(π² + ln² e) assumes the dashpot may pull at the end of
     the contact; with the binding no-tension rule (f_n ≥ 0) that α gives a larger
     rebound (e.g. 0.25 instead of 0.1). We therefore solve
     :func:`restitution_of_damping_ratio` (α) = e by bisection, starting from the

@@ -1,4 +1,4 @@
-"""Neighbour search: cell (bin) lists + Verlet lists with a skin (DESIGN.md §2).
+"""Neighbour search: cell (bin) lists + Verlet lists with a skin (docs/design.md §2.11).
 
 * Sphere pairs are a half list (i < j), sorted by (i, j) (CSR ``i_start``); a second
   CSR (``j_start``, slot ``j_slot[p]`` of pair p) orders the pairs by their j, so that
@@ -18,10 +18,139 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from . import fused
 from .walls import point_triangle_distance2
 
 MAX_CELLS_PER_PARTICLE = 8
+
+
+@njit(cache=True, error_model="numpy")
+def insertion_sort(a, start, stop):
+    """Sort a[start:stop] ascending in place (short neighbour segments)."""
+    for k in range(start + 1, stop):
+        v = a[k]
+        m = k - 1
+        while m >= start and a[m] > v:
+            a[m + 1] = a[m]
+            m -= 1
+        a[m + 1] = v
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell, perm,
+                        n_active, i_start, j_out, fill):
+    """Half list (partners j > i) of particle perm[s], per perm position s; sorted by j."""
+    for s in prange(n_active):
+        i = perm[s]
+        cz = particle_cell[i] % dims[2]
+        cy = (particle_cell[i] // dims[2]) % dims[1]
+        cx = particle_cell[i] // (dims[1] * dims[2])
+        count = 0
+        start = 0
+        if fill:
+            start = i_start[s]
+        for ax in range(max(cx - 1, 0), min(cx + 2, dims[0])):
+            for ay in range(max(cy - 1, 0), min(cy + 2, dims[1])):
+                for az in range(max(cz - 1, 0), min(cz + 2, dims[2])):
+                    c = (ax * dims[1] + ay) * dims[2] + az
+                    for q in range(cell_start[c], cell_start[c + 1]):
+                        j = cell_particles[q]
+                        if j <= i:
+                            continue
+                        cut = radius[i] + radius[j] + skin
+                        dx = pos[j, 0] - pos[i, 0]
+                        dy = pos[j, 1] - pos[i, 1]
+                        dz = pos[j, 2] - pos[i, 2]
+                        if dx * dx + dy * dy + dz * dz < cut * cut:
+                            if fill:
+                                j_out[start + count] = j
+                            count += 1
+        if not fill:
+            i_start[s + 1] = count
+        else:
+            insertion_sort(j_out, start, start + count)
+
+
+@njit(cache=True, error_model="numpy")
+def build_j_side(perm, iperm, i_start, pair_js):
+    """The j-side CSR over perm positions: slots ``j_start[s]:j_start[s+1]`` hold the
+    pairs in which particle perm[s] is j, by ascending i; ``j_slot[p]`` is pair p's slot."""
+    n = perm.size
+    counts = np.zeros(n + 1, np.int64)
+    for p in range(pair_js.size):
+        counts[pair_js[p] + 1] += 1
+    j_start = np.cumsum(counts)
+    fill = j_start[:-1].copy()
+    j_slot = np.empty(pair_js.size, np.int32)
+    for i in range(n):
+        s = iperm[i]
+        for p in range(i_start[s], i_start[s + 1]):
+            sj = pair_js[p]
+            j_slot[p] = fill[sj]
+            fill[sj] += 1
+    return j_start, j_slot
+
+
+def morton_order(particle_cell, dims):
+    """Particles sorted by the Morton (Z-order) code of their cell, then by index."""
+    c = particle_cell.astype(np.int64)
+    coords = (c // (dims[1] * dims[2]), (c // dims[2]) % dims[1], c % dims[2])
+    key = np.zeros(c.size, np.int64)
+    for bit in range(21):
+        for axis in range(3):
+            key |= ((coords[axis] >> bit) & 1) << (3 * bit + axis)
+    return np.argsort(key, kind="stable").astype(np.int32)
+
+
+@njit(cache=True, error_model="numpy")
+def pair_i_of(perm, i_start):
+    """Particle index of the i-side of every pair of the half list."""
+    out = np.empty(i_start[-1], np.int32)
+    for s in range(perm.size):
+        for p in range(i_start[s], i_start[s + 1]):
+            out[p] = perm[s]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, wall_normal):
+    """Plane walls within r + skin of each owned particle (CSR over perm positions),
+    and the candidates in ascending particle order (for the wall-force totals)."""
+    n = perm.size
+    nw = wall_point.shape[0]
+    w_start = np.zeros(n + 1, np.int64)
+    for s in range(n):
+        i = perm[s]
+        c = 0
+        if i < n_owned:
+            for w in range(nw):
+                dist = 0.0
+                for d in range(3):
+                    dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+                if dist < radius[i] + skin:
+                    c += 1
+        w_start[s + 1] = w_start[s] + c
+    w_idx = np.empty(w_start[n], np.int32)
+    for s in range(n):
+        i = perm[s]
+        c = w_start[s]
+        if i < n_owned:
+            for w in range(nw):
+                dist = 0.0
+                for d in range(3):
+                    dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+                if dist < radius[i] + skin:
+                    w_idx[c] = w
+                    c += 1
+    w_particle = np.empty(w_start[n], np.int32)
+    w_order = np.empty(w_start[n], np.int32)
+    k = 0
+    for i in range(n):
+        s = iperm[i]
+        for c in range(w_start[s], w_start[s + 1]):
+            w_particle[c] = i
+            w_order[k] = c
+            k += 1
+    return w_start, w_idx, w_particle, w_order
 
 
 @njit(cache=True)
@@ -124,7 +253,7 @@ def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell,
         if not fill:
             f_start[i + 1] = count
         else:
-            fused.insertion_sort(f_out, f_start[i], f_start[i] + count)
+            insertion_sort(f_out, f_start[i], f_start[i] + count)
 
 
 def build_facet_list(pos, radius, n_active, skin, vertices, triangles, grid):
@@ -166,7 +295,6 @@ def max_displacement(pos, ref_pos, n_active):
         if d != d:
             return math.inf
     return math.sqrt(m)
-
 
 
 class NeighborList:
@@ -214,7 +342,7 @@ class NeighborList:
         """Lower particle index of each stored pair."""
         if self.perm is None:
             return np.empty(0, np.int32)
-        return fused.pair_i_of(self.perm, self.i_start)
+        return pair_i_of(self.perm, self.i_start)
 
     @property
     def history(self):
@@ -268,27 +396,27 @@ class NeighborList:
         n = np.int64(n_active)
         old_keys = self.pair_i.astype(np.int64) * n + self.pair_j
         if new_order or self.perm is None or self.perm.size != n_active:
-            self.perm = fused.morton_order(particle_cell, dims)
+            self.perm = morton_order(particle_cell, dims)
             self.iperm = np.empty(n_active, np.int32)
             self.iperm[self.perm] = np.arange(n_active, dtype=np.int32)
         perm = self.perm
         i_start = np.zeros(n_active + 1, dtype=np.int64)
         dummy = np.empty(0, dtype=np.int32)
-        fused.count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+        count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
                                   n_active, i_start, dummy, False)
         i_start = np.cumsum(i_start)
         pair_j = np.empty(i_start[-1], dtype=np.int32)
-        fused.count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+        count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
                                   n_active, i_start, pair_j, True)
         self.i_start = i_start
         self.pair_js = self.iperm[pair_j]
         self._set_history(transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j))
-        self.j_start, self.j_slot = fused.build_j_side(perm, self.iperm, i_start, self.pair_js)
+        self.j_start, self.j_slot = build_j_side(perm, self.iperm, i_start, self.pair_js)
         # plane walls
         nw = np.int64(max(wall_point.shape[0], 1))
         old_keys = self.w_particle.astype(np.int64) * nw + self.w_idx
         old_hist = np.concatenate([self.w_hist, self.w_fn[:, None], self.w_force], axis=1)
-        self.w_start, self.w_idx, self.w_particle, self.w_order = fused.build_wall_candidates(
+        self.w_start, self.w_idx, self.w_particle, self.w_order = build_wall_candidates(
             pos, radius, self.skin, perm, self.iperm, n_owned, wall_point, wall_normal)
         new_hist = transfer_history(old_keys, old_hist, self.w_particle.astype(np.int64) * nw + self.w_idx)
         self.w_hist = np.ascontiguousarray(new_hist[:, :6])
@@ -342,6 +470,6 @@ class NeighborList:
         n = self.perm.size
         self.iperm = np.empty(n, np.int32)
         self.iperm[self.perm] = np.arange(n, dtype=np.int32)
-        self.j_start, self.j_slot = fused.build_j_side(self.perm, self.iperm, self.i_start, self.pair_js)
+        self.j_start, self.j_slot = build_j_side(self.perm, self.iperm, self.i_start, self.pair_js)
         self.w_particle = np.repeat(self.perm, np.diff(self.w_start)).astype(np.int32)
         self.w_order = np.argsort(self.w_particle, kind="stable").astype(np.int32)

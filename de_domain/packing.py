@@ -1,5 +1,5 @@
 """Specimen building blocks: sieve-curve size distributions, random non-overlapping
-clouds, and packing files (DESIGN.md §3).
+clouds, and packing files (docs/design.md §3.1).
 
 Packing files: ``.npz`` (arrays ``positions`` (n,3), ``radii`` (n,), optional
 metadata), plain text ``x y z r`` per line (as YADE ``ymport.text``, LIGGGHTS
@@ -71,7 +71,7 @@ class SieveCurve:
         return np.interp(self.diameters, d, mass / mass[-1], left=0.0, right=1.0)
 
 
-#: The sand of the thesis, App. D.1 (DESIGN.md §3), in metres.
+#: The sand of the thesis, App. D.1 (docs/design.md §3.1), in metres.
 THESIS_SAND = SieveCurve(
     np.array([0.14, 0.15, 0.3, 0.6, 1.18, 2.36, 4.75, 5.0]) * 1e-3,
     np.array([0.0, 0.0207, 0.0717, 0.2317, 0.647, 0.8803, 0.9899, 1.0]),

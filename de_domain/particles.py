@@ -1,4 +1,4 @@
-"""Sphere state as a struct of arrays (DESIGN.md §1–2).
+"""Sphere state as a struct of arrays (docs/design.md §1.2, §2.1).
 
 Layout: the first ``n_owned`` entries are the particles this process owns; the
 rest (``n - n_owned``) are ghost copies (reserved for MPI domain decomposition;
@@ -25,7 +25,7 @@ class Particles:
     at the given velocity). ``force``/``torque`` hold the resultant (contacts +
     gravity, before background damping) of the last step.
 
-    Velocities are leapfrog half-step values v^{n−½} (DESIGN.md §2).
+    Velocities are leapfrog half-step values v^{n−½} (docs/design.md §2.13).
     """
 
     def __init__(self, pos, radius, mass, inertia=None, vel=None, angvel=None, material=None,

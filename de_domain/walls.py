@@ -1,4 +1,4 @@
-"""Walls: infinite planes and triangle facet meshes (DESIGN.md §2 "Walls", §5).
+"""Walls: infinite planes and triangle facet meshes (docs/design.md §2.9–2.10, §5.1).
 
 Both are two-body contacts with a sphere i and the wall as body j: the wall is
 rigid, infinitely massive (m* = m_i) and, for the linear law, treated as a mirror
@@ -7,7 +7,7 @@ sphere of the same material radius (k_n = k_i k_w/(k_i + k_w), k = 4 E r, i.e.
 
 Facet meshes: a sphere gets one contact per triangle whose closest point lies
 within its radius, except that edge and vertex contacts are deduplicated inside
-one mesh (DESIGN.md §2 "exactly one contact at a shared edge or vertex"):
+one mesh (docs/design.md §2.10: exactly one contact at a shared edge or vertex):
   * an edge contact is dropped if the sphere has a face contact with a triangle
     incident to that edge, or an edge contact on the same edge with a triangle
     of lower index;
@@ -15,15 +15,23 @@ one mesh (DESIGN.md §2 "exactly one contact at a shared edge or vertex"):
     triangle containing that vertex, or a vertex contact on the same vertex with
     a triangle of lower index.
 The force a sphere exerts on a triangle is split on its vertices with the
-barycentric coordinates of the closest point (−λ_a F, DESIGN.md §5).
+barycentric coordinates of the closest point (−λ_a F, docs/design.md §5.1).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from .contact_laws import contact_force, linear_normal_stiffness, released_energy
-
+from .contact_laws import (
+    ContactBodies,
+    ContactGeometry,
+    RelativeMotion,
+    Springs,
+    contact_force,
+    linear_normal_stiffness,
+    released_energy,
+)
+from .state import E_FRICTION, W_CONTACT, W_WORK
 
 
 class PlaneWall:
@@ -45,7 +53,6 @@ class PlaneWall:
         self.material = int(material)
         self.velocity = velocity
         self.force = np.zeros(3)
-        self._engine_point = self.point.copy()
 
     @property
     def point(self):
@@ -69,7 +76,7 @@ class FacetMesh:
 
     Motion: fixed (zero velocity), rigid ``velocity = (vx, vy, vz)``, or per-vertex
     state from outside via :meth:`set_vertex_state`; the engine advances the
-    vertices linearly, x += v Δt, after every step (DESIGN.md §5 step 2).
+    vertices linearly, x += v Δt, after every step (docs/design.md §5.3).
 
     After each step: ``vertex_force`` (nv, 3) the force the particles exert on each
     vertex (barycentric split), ``vertex_impulse`` its time integral since the last
@@ -100,7 +107,7 @@ class FacetMesh:
         self.vertex_velocity[:] = np.asarray(value, dtype=np.float64).reshape(3)
 
     def set_vertex_state(self, positions, velocities):
-        """Set every vertex position and velocity (e.g. the FE interface, DESIGN.md §5)."""
+        """Set every vertex position and velocity (e.g. the FE interface, docs/design.md §5.3)."""
         self.vertices[:] = np.asarray(positions, dtype=np.float64).reshape(self.vertices.shape)
         self.vertex_velocity[:] = np.asarray(velocities, dtype=np.float64).reshape(self.vertices.shape)
 
@@ -211,13 +218,100 @@ def closest_point_on_triangle(px, py, pz, a, b, c):
             1.0 - v - w, v, w, 0)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def plane_wall_contacts_of(i, s, settings, particles, params, walls, resultant, energy):
+    """Contacts of sphere ``i`` (perm position ``s``) with its plane-wall candidates,
+    ``walls.start[s]:walls.start[s + 1]`` in ascending wall index.
+
+    The wall is body j (module docstring): n = −(wall normal), δ = r − (x − x_w)·n_w,
+    contact point on the sphere at the arm r − δ/2, the wall's velocity its rigid
+    translation. Returns ``resultant`` (force 3, torque 3 on the sphere) with the
+    contacts added in candidate order; per candidate the history, normal force and
+    force on the sphere are stored; ``energy`` (``state.W_*``) += the walls' work on
+    the sphere and the contact energy terms. An opened contact releases its springs
+    (booked as friction). Inlined into the step kernel (Numba IR).
+    """
+    law = settings.law
+    dt = settings.dt
+    pos = particles.pos
+    vel = particles.vel
+    accel = particles.accel
+    angvel = particles.angvel
+    material = particles.material
+    young = params.young
+    pair_params = params.pair_params
+    wall_point = walls.point
+    wall_normal = walls.normal
+    wall_vel = walls.velocity
+    wall_mat = walls.material
+    w_idx = walls.wall
+    w_hist = walls.history
+    w_fn = walls.normal_force
+    w_force = walls.force
+    fx, fy, fz, tx, ty, tz = resultant
+    r = particles.radius[i]
+    for c in range(walls.start[s], walls.start[s + 1]):
+        w = w_idx[c]
+        dist = 0.0
+        for d in range(3):
+            dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+        overlap = r - dist
+        k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
+        if overlap <= 0.0:
+            if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
+                    or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
+                springs = Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4], w_hist[c, 5])
+                energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, material[i], wall_mat[w],
+                                                                  k_lin, r, springs)
+                for k in range(6):
+                    w_hist[c, k] = 0.0
+            w_fn[c] = 0.0
+            for k in range(3):
+                w_force[c, k] = 0.0
+            continue
+        nx = -wall_normal[w, 0]
+        ny = -wall_normal[w, 1]
+        nz = -wall_normal[w, 2]
+        arm = r - 0.5 * overlap
+        vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+        vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+        vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+        dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
+        res = contact_force(law, pair_params, material[i], wall_mat[w], ContactGeometry(nx, ny, nz, overlap),
+                            RelativeMotion(wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
+                                           -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
+                            ContactBodies(k_lin, r, r, particles.mass[i]),
+                            Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4],
+                                    w_hist[c, 5]), dt)
+        wfx, wfy, wfz = res.fx, res.fy, res.fz
+        for k in range(6):
+            w_hist[c, k] = res.springs[k]
+        w_fn[c] = -(wfx * nx + wfy * ny + wfz * nz)
+        w_force[c, 0] = wfx
+        w_force[c, 1] = wfy
+        w_force[c, 2] = wfz
+        fx += wfx
+        fy += wfy
+        fz += wfz
+        tx += arm * (ny * wfz - nz * wfy) + res.springs.mrx
+        ty += arm * (nz * wfx - nx * wfz) + res.springs.mry
+        tz += arm * (nx * wfy - ny * wfx) + res.springs.mrz
+        energy[W_WORK] += (wfx * wall_vel[w, 0] + wfy * wall_vel[w, 1] + wfz * wall_vel[w, 2]) * dt
+        for k in range(5):
+            energy[W_CONTACT + k] += res.energy[k]
+    return fx, fy, fz, tx, ty, tz
+
 
 @njit(cache=True, error_model="numpy")
-def _keep_facet_contact(i, k, s, tri, feature, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
+def _keep_facet_contact(i, k, s, tri, feature, pos, radius, meshes, candidates):
     """Deduplication rule of the module docstring for candidate ``s`` of sphere ``i``
-    (array index ``i``; its candidates are ``f_start[k]:f_start[k + 1]``)."""
+    (array index ``i``; its candidates are ``candidates.start[k]:candidates.start[k + 1]``)."""
     if feature == 0:
         return True
+    vertices = meshes.vertices
+    triangles = meshes.triangles
+    tri_edges = meshes.triangle_edges
+    f_tri = candidates.triangle
     if feature <= 3:
         edge = tri_edges[tri, feature - 1]
         vertex = -1
@@ -225,7 +319,7 @@ def _keep_facet_contact(i, k, s, tri, feature, pos, radius, vertices, triangles,
         edge = -1
         vertex = triangles[tri, feature - 4]
     r2 = radius[i] * radius[i]
-    for s2 in range(f_start[k], f_start[k + 1]):
+    for s2 in range(candidates.start[k], candidates.start[k + 1]):
         if s2 == s:
             continue
         t2 = f_tri[s2]
@@ -250,36 +344,59 @@ def _keep_facet_contact(i, k, s, tri, feature, pos, radius, vertices, triangles,
 
 
 @njit(cache=True, error_model="numpy")
-def _facet_candidate_active(i, k, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri):
-    t = f_tri[s]
+def _facet_candidate_active(i, k, s, pos, radius, meshes, candidates):
+    vertices = meshes.vertices
+    triangles = meshes.triangles
+    t = candidates.triangle[s]
     q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t, 0]],
                                   vertices[triangles[t, 1]], vertices[triangles[t, 2]])
     d2 = (q[0] - pos[i, 0]) ** 2 + (q[1] - pos[i, 1]) ** 2 + (q[2] - pos[i, 2]) ** 2
     if d2 >= radius[i] * radius[i]:
         return False
-    return _keep_facet_contact(i, k, s, t, q[6], pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
+    return _keep_facet_contact(i, k, s, t, q[6], pos, radius, meshes, candidates)
 
 
 @njit(cache=True, error_model="numpy")
-def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, material, young, pair_params,
-                      vertices, vertex_vel, triangles, tri_edges, tri_mat, tri_mesh, f_start, f_tri, history,
-                      active, cand_force, cand_lambda, sums, energy):
-    """Sphere–triangle contacts of sphere ``i`` (closest point: face, edge or vertex;
-    deduplicated), candidates ``f_start[k]:f_start[k + 1]`` in triangle order.
+def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, resultant, energy):
+    """Sphere–triangle contacts of sphere ``i`` (public index ``k``: its candidates are
+    ``candidates.start[k]:candidates.start[k + 1]``, in triangle order); closest point on the
+    face, an edge or a vertex, deduplicated (module docstring).
 
     (1) which candidates are in contact; (2) a new contact on a mesh takes over the
     history of a contact on the same mesh that has just ended (a sphere rolling or
     sliding across a shared edge keeps its tangential spring); (3) forces, added in
-    candidate order to ``sums`` (force 3, torque 3). ``cand_force`` (force on the
-    sphere, zero if inactive) and ``cand_lambda`` (barycentric weights of the closest
-    point) feed :func:`facet_vertex_forces`. ``energy`` += work of the facets on the
-    sphere, e_normal, e_tangential, e_rolling, friction, damping of this step.
+    candidate order to ``resultant`` (force 3, torque 3 on the sphere), which is
+    returned. ``candidates.force`` (force on the sphere, zero if inactive) and
+    ``candidates.barycentric`` (weights of the closest point) feed
+    :func:`facet_vertex_forces`. ``energy`` (``state.W_*``) += the facets' work on the
+    sphere and the contact energy terms of this step.
     """
+    law = settings.law
+    dt = settings.dt
+    pos = particles.pos
+    vel = particles.vel
+    accel = particles.accel
+    angvel = particles.angvel
+    radius = particles.radius
+    material = particles.material
+    young = params.young
+    pair_params = params.pair_params
+    vertices = meshes.vertices
+    vertex_vel = meshes.vertex_velocity
+    triangles = meshes.triangles
+    tri_mat = meshes.triangle_material
+    tri_mesh = meshes.triangle_mesh
+    f_tri = candidates.triangle
+    history = candidates.history
+    active = candidates.active
+    cand_force = candidates.force
+    cand_lambda = candidates.barycentric
+    sfx, sfy, sfz, stx, sty, stz = resultant
     r = radius[i]
-    s0 = f_start[k]
-    s1 = f_start[k + 1]
+    s0 = candidates.start[k]
+    s1 = candidates.start[k + 1]
     for s in range(s0, s1):
-        active[s] = _facet_candidate_active(i, k, s, pos, radius, vertices, triangles, tri_edges, f_start, f_tri)
+        active[s] = _facet_candidate_active(i, k, s, pos, radius, meshes, candidates)
     for s in range(s0, s1):
         if not active[s] or np.any(history[s] != 0.0):
             continue
@@ -294,8 +411,9 @@ def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, mate
         k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
         if not active[s]:
             if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
-                energy[4] += released_energy(law, pair_params, material[i], tri_mat[t], k_lin, r, r,
-                                             h[0], h[1], h[2], h[3], h[4], h[5])
+                energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, material[i], tri_mat[t],
+                                                                  k_lin, r, Springs(h[0], h[1], h[2], h[3], h[4],
+                                                                                    h[5]))
                 h[:] = 0.0
             cand_force[s, :] = 0.0
             continue
@@ -334,33 +452,40 @@ def facet_contacts_of(i, k, law, dt, pos, vel, accel, angvel, radius, mass, mate
         vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
         vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
         dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-        res = contact_force(law, pair_params, material[i], tri_mat[t], nx, ny, nz, overlap,
-                            vfx - vcx, vfy - vcy, vfz - vcz, dvn,
-                            -angvel[i, 0], -angvel[i, 1], -angvel[i, 2],
-                            k_lin, r, r, mass[i], h[0], h[1], h[2], h[3], h[4], h[5], dt)
-        fx, fy, fz = res[0], res[1], res[2]
-        h[0] = res[3]; h[1] = res[4]; h[2] = res[5]
-        h[3] = res[6]; h[4] = res[7]; h[5] = res[8]
+        res = contact_force(law, pair_params, material[i], tri_mat[t], ContactGeometry(nx, ny, nz, overlap),
+                            RelativeMotion(vfx - vcx, vfy - vcy, vfz - vcz, dvn,
+                                           -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
+                            ContactBodies(k_lin, r, r, particles.mass[i]),
+                            Springs(h[0], h[1], h[2], h[3], h[4], h[5]), dt)
+        fx, fy, fz = res.fx, res.fy, res.fz
+        for m in range(6):
+            h[m] = res.springs[m]
         cand_force[s, 0] = fx
         cand_force[s, 1] = fy
         cand_force[s, 2] = fz
         cand_lambda[s, 0] = la
         cand_lambda[s, 1] = lb
         cand_lambda[s, 2] = lc
-        sums[0] += fx
-        sums[1] += fy
-        sums[2] += fz
-        sums[3] += arm * (ny * fz - nz * fy) + res[6]
-        sums[4] += arm * (nz * fx - nx * fz) + res[7]
-        sums[5] += arm * (nx * fy - ny * fx) + res[8]
-        energy[0] += (fx * vfx + fy * vfy + fz * vfz) * dt
+        sfx += fx
+        sfy += fy
+        sfz += fz
+        stx += arm * (ny * fz - nz * fy) + res.springs.mrx
+        sty += arm * (nz * fx - nx * fz) + res.springs.mry
+        stz += arm * (nx * fy - ny * fx) + res.springs.mrz
+        energy[W_WORK] += (fx * vfx + fy * vfy + fz * vfz) * dt
         for m in range(5):
-            energy[m + 1] += res[9 + m]
+            energy[W_CONTACT + m] += res.energy[m]
+    return sfx, sfy, sfz, stx, sty, stz
 
 
 @njit(cache=True, error_model="numpy")
-def facet_vertex_forces(triangles, f_tri, cand_force, cand_lambda, vertex_force):
-    """Force on the facet vertices: −λ_a F per active candidate (serial, fixed order)."""
+def facet_vertex_forces(meshes, candidates):
+    """Force on the facet vertices: −λ_a F per active candidate (serial, fixed order),
+    into ``meshes.vertex_force``."""
+    vertex_force = meshes.vertex_force
+    cand_force = candidates.force
+    triangles = meshes.triangles
+    f_tri = candidates.triangle
     vertex_force[:, :] = 0.0
     for s in range(f_tri.size):
         if cand_force[s, 0] == 0.0 and cand_force[s, 1] == 0.0 and cand_force[s, 2] == 0.0:
@@ -369,4 +494,4 @@ def facet_vertex_forces(triangles, f_tri, cand_force, cand_lambda, vertex_force)
         for a in range(3):
             v = triangles[t, a]
             for d in range(3):
-                vertex_force[v, d] -= cand_lambda[s, a] * cand_force[s, d]
+                vertex_force[v, d] -= candidates.barycentric[s, a] * cand_force[s, d]

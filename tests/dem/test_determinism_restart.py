@@ -74,7 +74,6 @@ def test_sphere_sticks_on_slope_across_rebuilds():
     """Rotation blocked, tan θ < μ: the tangential spring holds the sphere across rebuilds."""
     theta = math.radians(20.0)
     mat = [Material(young=5e7, friction=0.5, restitution=0.3)]
-    L = 4e-3
     support = Particles.from_spheres([[0, 0, 0], [0, 0, 2e-3 - 1e-8]], 1e-3, materials=mat)
     support.blocked[0, :] = True
     support.blocked[1, 3:] = True

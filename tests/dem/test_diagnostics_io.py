@@ -30,7 +30,8 @@ def test_solid_volume_sphere_region_lens_and_void_ratio():
     engine = engine_of([[0.0, 0.0, 0.0], [5 * R, 0.0, 0.0]])
     region = dg.SphereRegion((0.0, 0.0, 0.0), 5 * R)  # holds sphere 0, half of sphere 1 (almost)
     d, r, big = 5 * R, R, 5 * R
-    lens = math.pi * (big + r - d) ** 2 * (d * d + 2 * d * r - 3 * r * r + 2 * d * big + 6 * r * big - 3 * big**2) / (12 * d)
+    lens = (math.pi * (big + r - d) ** 2 * (d * d + 2 * d * r - 3 * r * r + 2 * d * big + 6 * r * big - 3 * big**2)
+            / (12 * d))
     solid = 4 / 3 * math.pi * R**3 + lens
     assert dg.solid_volume(engine, region) == pytest.approx(solid, rel=1e-12)
     assert dg.void_ratio(engine, region) == pytest.approx((region.volume - solid) / solid, rel=1e-12)
