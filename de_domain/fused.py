@@ -10,10 +10,10 @@ done):
 * region 2, per block of particles: the force/torque on each particle gathered
   from its i-side pairs (ascending j) then its j-side pairs (ascending i), the
   plane walls it may touch (ascending wall index,
-  :func:`de_domain.walls.plane_wall_contacts_of`), the facet triangles it may
+  :func:`de_domain.walls.plane_wall_contacts`), the facet triangles it may
   touch (ascending triangle index, :func:`de_domain.walls.facet_contacts_of`),
   then gravity, background damping and the leapfrog update
-  (:func:`de_domain.integrate.integrate_particle`); energy sums and the largest
+  (:func:`de_domain.integrate.integrate_block`); energy sums and the largest
   displacement per block;
 * serial: energy books, facet vertex forces and impulses, wall and vertex motion,
   the rebuild test.
@@ -64,7 +64,7 @@ from .contact_laws import (
     linear_normal_stiffness,
     released_energy,
 )
-from .integrate import IntegrationTerms, integrate_particle
+from .integrate import IntegrationTerms, integrate_block
 from .state import (
     BOOK_ACCUMULATED,
     BOOK_FIRST,
@@ -92,7 +92,7 @@ from .state import (
     W_CONTACT,
     W_WORK,
 )
-from .walls import facet_contacts_of, facet_vertex_forces, plane_wall_contacts_of
+from .walls import facet_contacts_of, facet_vertex_forces, plane_wall_contacts
 
 PBLOCK = 256          # particles per parallel work item (and per energy block)
 PERM_EVERY = 100_000  # steps between refreshes of the spatial order
@@ -251,8 +251,11 @@ def _pair_block(b, settings, particles, params, pairs, e1):
 
 @njit(cache=True, error_model="numpy")
 def _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax):
-    """Region 2 work item: gather, plane walls, facets, then gravity, damping and
-    leapfrog of the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK).
+    """Region 2 work item, the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK),
+    in passes over the block: the gather, the plane walls, the facets, then gravity,
+    damping and the leapfrog. Each particle's sum takes the same terms in the same
+    order as in one pass (a particle's walls, facets and update read only its own
+    state), and every pass unpacks the named tuples once per block.
     ``e2[b]``: the boundary terms (``state.W_*``) then the integration terms
     (``state.I_*``, from column ``N_WALL_ENERGY``); ``dmax[b]``: the largest squared
     displacement since the last list build (inf for a NaN)."""
@@ -266,12 +269,12 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
     j_start = pairs.j_start
     j_rec = pairs.j_record
     f_start = candidates.start
+    particle_index = candidates.particle_index
     has_facets = candidates.triangle.size > 0
-    n = perm.size
+    first = b * PBLOCK
+    last = min((b + 1) * PBLOCK, perm.size)
     we = np.zeros(N_WALL_ENERGY)
-    terms = IntegrationTerms(0.0, 0.0, 0.0, 0.0, 0.0)
-    d2max = 0.0
-    for s in range(b * PBLOCK, min((b + 1) * PBLOCK, n)):
+    for s in range(first, last):
         i = np.uint64(s) if in_order else np.uint64(perm[s])
         if i >= n_owned:
             continue
@@ -282,15 +285,27 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
         for q in range(np.uint64(j_start[s]), np.uint64(j_start[s + 1])):
             fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
             tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
-        resultant = plane_wall_contacts_of(i, s, settings, particles, params, walls, (fx, fy, fz, tx, ty, tz), we)
-        if has_facets:  # triangle facets, after the plane walls
-            k = candidates.particle_index[s]
-            if f_start[k + 1] > f_start[k]:
-                resultant = facet_contacts_of(i, k, settings, particles, params, meshes, candidates, resultant, we)
-        for d in range(3):
-            force[i, d] = resultant[d]
-            torque[i, d] = resultant[3 + d]
-        terms = integrate_particle(i, settings, particles, terms)
+        force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
+        torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
+    plane_wall_contacts(first, last, settings, particles, params, perm, walls, we)
+    if has_facets:  # triangle facets, after the plane walls
+        for s in range(first, last):
+            i = np.uint64(s) if in_order else np.uint64(perm[s])
+            k = particle_index[s]
+            if i >= n_owned or f_start[k + 1] == f_start[k]:
+                continue
+            resultant = facet_contacts_of(i, k, settings, particles, params, meshes, candidates,
+                                          (force[i, 0], force[i, 1], force[i, 2], torque[i, 0], torque[i, 1],
+                                           torque[i, 2]), we)
+            for d in range(3):
+                force[i, d] = resultant[d]
+                torque[i, d] = resultant[3 + d]
+    terms = integrate_block(first, last, settings, particles, perm, IntegrationTerms(0.0, 0.0, 0.0, 0.0, 0.0))
+    d2max = 0.0
+    for s in range(first, last):
+        i = np.uint64(s) if in_order else np.uint64(perm[s])
+        if i >= n_owned:
+            continue
         ex = pos[i, 0] - ref_pos[i, 0]
         ey = pos[i, 1] - ref_pos[i, 1]
         ez = pos[i, 2] - ref_pos[i, 2]
@@ -361,12 +376,18 @@ def _move_boundaries(settings, walls, meshes, candidates):
     vertex since the last list build."""
     dt = settings.dt
     wall_point = walls.point
+    wall_velocity = walls.velocity
+    wall_ref = walls.ref_point
+    vertex_velocity = meshes.vertex_velocity
+    vertex_force = meshes.vertex_force
+    vertex_impulse = meshes.vertex_impulse
+    ref_vertices = meshes.ref_vertices
     dw2 = 0.0
     for w in range(wall_point.shape[0]):
         dd = 0.0
         for d in range(3):
-            wall_point[w, d] = wall_point[w, d] + walls.velocity[w, d] * dt
-            dd += (wall_point[w, d] - walls.ref_point[w, d]) * (wall_point[w, d] - walls.ref_point[w, d])
+            wall_point[w, d] = wall_point[w, d] + wall_velocity[w, d] * dt
+            dd += (wall_point[w, d] - wall_ref[w, d]) * (wall_point[w, d] - wall_ref[w, d])
         dw2 = max(dw2, dd)
     vertices = meshes.vertices
     if vertices.shape[0]:
@@ -374,9 +395,9 @@ def _move_boundaries(settings, walls, meshes, candidates):
         for v in range(vertices.shape[0]):
             dd = 0.0
             for d in range(3):
-                meshes.vertex_impulse[v, d] += meshes.vertex_force[v, d] * dt
-                vertices[v, d] += meshes.vertex_velocity[v, d] * dt
-                dd += (vertices[v, d] - meshes.ref_vertices[v, d]) * (vertices[v, d] - meshes.ref_vertices[v, d])
+                vertex_impulse[v, d] += vertex_force[v, d] * dt
+                vertices[v, d] += vertex_velocity[v, d] * dt
+                dd += (vertices[v, d] - ref_vertices[v, d]) * (vertices[v, d] - ref_vertices[v, d])
             dw2 = max(dw2, dd)
     return dw2
 

@@ -41,12 +41,14 @@ def leapfrog_dof(f, v, m, inv, dt, held, prescribed, prescribed_velocity, local_
     return v_new, v_mid, 0.0, f_damp * v_mid * dt
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def integrate_particle(i, settings, particles, terms):
-    """Advance particle ``i`` by one step from the contact resultant in
-    ``particles.force``/``torque`` (gravity is added here, so ``force`` ends as the
-    full resultant). Returns the running :data:`IntegrationTerms` ``terms`` with this
-    particle's added, DOF by DOF. Inlined into the step kernel (Numba IR)."""
+@njit(cache=True, error_model="numpy")
+def integrate_block(first, last, settings, particles, perm, terms):
+    """Advance the owned particles of perm positions [first, last) by one step from
+    the contact resultant in ``particles.force``/``torque`` (gravity is added here, so
+    ``force`` ends as the full resultant). Returns the running :data:`IntegrationTerms`
+    ``terms`` with these particles' added, particle by particle and DOF by DOF. One
+    call per block: the named tuples are unpacked once per block (each unpacked array
+    costs an atomic reference-count increment and decrement)."""
     dt = settings.dt
     gravity = settings.gravity
     local_damping = settings.local_damping
@@ -60,36 +62,43 @@ def integrate_particle(i, settings, particles, terms):
     blocked = particles.blocked
     prescribed = particles.prescribed
     prescribed_velocity = particles.prescribed_velocity
+    mass = particles.mass
+    inertia = particles.inertia
+    n_owned = np.uint64(settings.n_owned)
     ke_t, ke_r, potential, damping, boundary = terms
-    m = particles.mass[i]
-    inv = 1.0 / m
-    constrained = False
-    if settings.has_constraints:
-        for d in range(6):
-            if blocked[i, d] or prescribed[i, d]:
-                constrained = True
-    for d in range(3):
-        force[i, d] += m * gravity[d]
-        v = vel[i, d]
-        held = constrained and (blocked[i, d] or prescribed[i, d])
-        v_new, v_mid, work, damped = leapfrog_dof(force[i, d], v, m, inv, dt, held, prescribed[i, d],
-                                                  prescribed_velocity[i, d], local_damping, viscous_damping)
-        boundary += work
-        damping -= damped
-        ke_t += 0.5 * m * v_mid * v_mid
-        potential -= m * gravity[d] * pos[i, d]
-        accel[i, d] = (v_new - v) / dt
-        vel[i, d] = v_new
-        pos[i, d] += dt * v_new
-    weight = particles.inertia[i]
-    inv = 1.0 / weight
-    for d in range(3):
-        held = constrained and (blocked[i, d + 3] or prescribed[i, d + 3])
-        v_new, v_mid, work, damped = leapfrog_dof(torque[i, d], angvel[i, d], weight, inv, dt, held,
-                                                  prescribed[i, d + 3], prescribed_velocity[i, d + 3],
-                                                  local_damping, viscous_damping)
-        boundary += work
-        damping -= damped
-        ke_r += 0.5 * weight * v_mid * v_mid
-        angvel[i, d] = v_new
+    for s in range(first, last):
+        i = np.uint64(s) if settings.in_order else np.uint64(perm[s])
+        if i >= n_owned:
+            continue
+        m = mass[i]
+        inv = 1.0 / m
+        constrained = False
+        if settings.has_constraints:
+            for d in range(6):
+                if blocked[i, d] or prescribed[i, d]:
+                    constrained = True
+        for d in range(3):
+            force[i, d] += m * gravity[d]
+            v = vel[i, d]
+            held = constrained and (blocked[i, d] or prescribed[i, d])
+            v_new, v_mid, work, damped = leapfrog_dof(force[i, d], v, m, inv, dt, held, prescribed[i, d],
+                                                      prescribed_velocity[i, d], local_damping, viscous_damping)
+            boundary += work
+            damping -= damped
+            ke_t += 0.5 * m * v_mid * v_mid
+            potential -= m * gravity[d] * pos[i, d]
+            accel[i, d] = (v_new - v) / dt
+            vel[i, d] = v_new
+            pos[i, d] += dt * v_new
+        weight = inertia[i]
+        inv = 1.0 / weight
+        for d in range(3):
+            held = constrained and (blocked[i, d + 3] or prescribed[i, d + 3])
+            v_new, v_mid, work, damped = leapfrog_dof(torque[i, d], angvel[i, d], weight, inv, dt, held,
+                                                      prescribed[i, d + 3], prescribed_velocity[i, d + 3],
+                                                      local_damping, viscous_damping)
+            boundary += work
+            damping -= damped
+            ke_r += 0.5 * weight * v_mid * v_mid
+            angvel[i, d] = v_new
     return IntegrationTerms(ke_t, ke_r, potential, damping, boundary)

@@ -124,7 +124,7 @@ W_WORK = 0
 W_CONTACT = 1
 N_WALL_ENERGY = W_CONTACT + N_CONTACT_ENERGY
 
-# Integration terms per block (integrate.integrate_particle).
+# Integration terms per block (integrate.integrate_block).
 I_KINETIC_TRANSLATIONAL = 0
 I_KINETIC_ROTATIONAL = 1
 I_GRAVITY = 2

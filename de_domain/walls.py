@@ -218,18 +218,20 @@ def closest_point_on_triangle(px, py, pz, a, b, c):
             1.0 - v - w, v, w, 0)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def plane_wall_contacts_of(i, s, settings, particles, params, walls, resultant, energy):
-    """Contacts of sphere ``i`` (perm position ``s``) with its plane-wall candidates,
-    ``walls.start[s]:walls.start[s + 1]`` in ascending wall index.
+@njit(cache=True, error_model="numpy")
+def plane_wall_contacts(first, last, settings, particles, params, perm, walls, energy):
+    """Contacts of the owned spheres of perm positions [first, last) with their
+    plane-wall candidates, ``walls.start[s]:walls.start[s + 1]`` in ascending wall index.
 
     The wall is body j (module docstring): n = −(wall normal), δ = r − (x − x_w)·n_w,
     contact point on the sphere at the arm r − δ/2, the wall's velocity its rigid
-    translation. Returns ``resultant`` (force 3, torque 3 on the sphere) with the
-    contacts added in candidate order; per candidate the history, normal force and
-    force on the sphere are stored; ``energy`` (``state.W_*``) += the walls' work on
-    the sphere and the contact energy terms. An opened contact releases its springs
-    (booked as friction). Inlined into the step kernel (Numba IR).
+    translation. The contact forces and torques are added, in candidate order, to
+    ``particles.force``/``torque``; per candidate the history, normal force and force
+    on the sphere are stored; ``energy`` (``state.W_*``) += the walls' work on the
+    spheres and the contact energy terms. An opened contact releases its springs
+    (booked as friction). One call per block of particles: the named tuples are
+    unpacked once per block, not per particle (each unpacked array costs a
+    reference-count increment and decrement, atomic, shared by the threads).
     """
     law = settings.law
     dt = settings.dt
@@ -244,62 +246,75 @@ def plane_wall_contacts_of(i, s, settings, particles, params, walls, resultant, 
     wall_normal = walls.normal
     wall_vel = walls.velocity
     wall_mat = walls.material
+    w_start = walls.start
     w_idx = walls.wall
     w_hist = walls.history
     w_fn = walls.normal_force
     w_force = walls.force
-    fx, fy, fz, tx, ty, tz = resultant
-    r = particles.radius[i]
-    for c in range(walls.start[s], walls.start[s + 1]):
-        w = w_idx[c]
-        dist = 0.0
-        for d in range(3):
-            dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
-        overlap = r - dist
-        k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
-        if overlap <= 0.0:
-            if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
-                    or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
-                springs = Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4], w_hist[c, 5])
-                energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, material[i], wall_mat[w],
-                                                                  k_lin, r, springs)
-                for k in range(6):
-                    w_hist[c, k] = 0.0
-            w_fn[c] = 0.0
-            for k in range(3):
-                w_force[c, k] = 0.0
+    radius = particles.radius
+    mass = particles.mass
+    force = particles.force
+    torque = particles.torque
+    n_owned = np.uint64(settings.n_owned)
+    for s in range(first, last):
+        i = np.uint64(s) if settings.in_order else np.uint64(perm[s])
+        if i >= n_owned or w_start[s + 1] == w_start[s]:
             continue
-        nx = -wall_normal[w, 0]
-        ny = -wall_normal[w, 1]
-        nz = -wall_normal[w, 2]
-        arm = r - 0.5 * overlap
-        vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
-        vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
-        vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
-        dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-        res = contact_force(law, pair_params, material[i], wall_mat[w], ContactGeometry(nx, ny, nz, overlap),
-                            RelativeMotion(wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
-                                           -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
-                            ContactBodies(k_lin, r, r, particles.mass[i]),
-                            Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4],
-                                    w_hist[c, 5]), dt)
-        wfx, wfy, wfz = res.fx, res.fy, res.fz
-        for k in range(6):
-            w_hist[c, k] = res.springs[k]
-        w_fn[c] = -(wfx * nx + wfy * ny + wfz * nz)
-        w_force[c, 0] = wfx
-        w_force[c, 1] = wfy
-        w_force[c, 2] = wfz
-        fx += wfx
-        fy += wfy
-        fz += wfz
-        tx += arm * (ny * wfz - nz * wfy) + res.springs.mrx
-        ty += arm * (nz * wfx - nx * wfz) + res.springs.mry
-        tz += arm * (nx * wfy - ny * wfx) + res.springs.mrz
-        energy[W_WORK] += (wfx * wall_vel[w, 0] + wfy * wall_vel[w, 1] + wfz * wall_vel[w, 2]) * dt
-        for k in range(5):
-            energy[W_CONTACT + k] += res.energy[k]
-    return fx, fy, fz, tx, ty, tz
+        fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
+        tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
+        r = radius[i]
+        for c in range(w_start[s], w_start[s + 1]):
+            w = w_idx[c]
+            dist = 0.0
+            for d in range(3):
+                dist += (pos[i, d] - wall_point[w, d]) * wall_normal[w, d]
+            overlap = r - dist
+            k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
+            if overlap <= 0.0:
+                if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
+                        or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
+                    springs = Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4],
+                                      w_hist[c, 5])
+                    energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, material[i], wall_mat[w],
+                                                                      k_lin, r, springs)
+                    for k in range(6):
+                        w_hist[c, k] = 0.0
+                w_fn[c] = 0.0
+                for k in range(3):
+                    w_force[c, k] = 0.0
+                continue
+            nx = -wall_normal[w, 0]
+            ny = -wall_normal[w, 1]
+            nz = -wall_normal[w, 2]
+            arm = r - 0.5 * overlap
+            vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
+            vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
+            vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
+            dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
+            res = contact_force(law, pair_params, material[i], wall_mat[w], ContactGeometry(nx, ny, nz, overlap),
+                                RelativeMotion(wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
+                                               -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
+                                ContactBodies(k_lin, r, r, mass[i]),
+                                Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4],
+                                        w_hist[c, 5]), dt)
+            wfx, wfy, wfz = res.fx, res.fy, res.fz
+            for k in range(6):
+                w_hist[c, k] = res.springs[k]
+            w_fn[c] = -(wfx * nx + wfy * ny + wfz * nz)
+            w_force[c, 0] = wfx
+            w_force[c, 1] = wfy
+            w_force[c, 2] = wfz
+            fx += wfx
+            fy += wfy
+            fz += wfz
+            tx += arm * (ny * wfz - nz * wfy) + res.springs.mrx
+            ty += arm * (nz * wfx - nx * wfz) + res.springs.mry
+            tz += arm * (nx * wfy - ny * wfx) + res.springs.mrz
+            energy[W_WORK] += (wfx * wall_vel[w, 0] + wfy * wall_vel[w, 1] + wfz * wall_vel[w, 2]) * dt
+            for k in range(5):
+                energy[W_CONTACT + k] += res.energy[k]
+        force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
+        torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
 
 
 @njit(cache=True, error_model="numpy")
@@ -378,6 +393,7 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
     accel = particles.accel
     angvel = particles.angvel
     radius = particles.radius
+    mass = particles.mass
     material = particles.material
     young = params.young
     pair_params = params.pair_params
@@ -455,7 +471,7 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
         res = contact_force(law, pair_params, material[i], tri_mat[t], ContactGeometry(nx, ny, nz, overlap),
                             RelativeMotion(vfx - vcx, vfy - vcy, vfz - vcz, dvn,
                                            -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
-                            ContactBodies(k_lin, r, r, particles.mass[i]),
+                            ContactBodies(k_lin, r, r, mass[i]),
                             Springs(h[0], h[1], h[2], h[3], h[4], h[5]), dt)
         fx, fy, fz = res.fx, res.fy, res.fz
         for m in range(6):
