@@ -8,7 +8,7 @@ SYSTEM_PY    := /usr/bin/python3
 APT_PACKAGES := python3-dolfinx python3-numba python3-mpi4py python3-petsc4py \
                 python3-gmsh python3-meshio python3-h5py python3-matplotlib \
                 python3-scipy python3-pytest python3-venv python3-pip openmpi-bin make
-PIP_EXTRAS   := pydantic>=2,<3 tomli-w>=1.0
+PIP_EXTRAS   := pydantic>=2,<3 tomli-w>=1.0 ruff>=0.17,<0.18
 STAMP        := $(VENV)/.setup-done
 # OpenMPI refuses to run as root and to oversubscribe 2 cores unless told; these
 # are also appended to .venv/bin/activate, so `mpirun -n 4 cosim run CASE` works.
@@ -53,6 +53,7 @@ lab-series: setup
 	$(VENV)/bin/cosim series runs/direct_shear_small.toml runs/direct_shear_small_loose.toml --out runs/out/direct_shear_series_small
 
 test: setup
+	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -m "not slow and not mpi" -q --color=no
 	$(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q --color=no -p no:cacheprovider
 

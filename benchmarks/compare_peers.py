@@ -2,16 +2,25 @@
 
     .venv/bin/python benchmarks/compare_peers.py                   # 5k and 20k beds
     .venv/bin/python benchmarks/compare_peers.py --sizes 20000 --repeats 3
+    .venv/bin/python benchmarks/compare_peers.py --sizes 5000 --peers liggghts
 
 Needs the Debian packages ``liggghts`` and ``yade`` (``make bench-peers`` installs
-them). Every peer runs via subprocess in a temporary directory holding copies of the
-W1 decks (``../shared/benchmarks/w1``: ``in.bed``, ``yade_bed.py``, the beds):
+them). Everything the peers read is made here, from the same bed and parameters:
+the W1 beds ``bed_N.dump`` (settled by de_domain, ``benchmarks/beds.py``, made once
+and cached) and, written on every run beside them into ``benchmarks/out/w1/``, the
+LIGGGHTS deck ``in.bed`` and the YADE script ``yade_bed.py``. Every peer runs via
+subprocess in a temporary directory holding copies of those files:
 
-* LIGGGHTS, 1 and 2 MPI ranks: ``in.bed`` settles its own bed of N spheres (same
-  box, radii, stiffnesses, friction, Δt; ``-var seed 86028121``) and then times
-  ``run 2000``; the rate is N·2000 / (its last "Loop time").
-* YADE ``-j1`` / ``-j2``: ``yade_bed.py N 2000`` loads ``bed_N.dump``, runs 1000
-  steps, then times 2000 (it prints particle-steps/s).
+* LIGGGHTS, 1 and 2 MPI ranks: ``in.bed`` reads ``bed_N.dump`` (``read_dump``), sets
+  ρ = 2650 kg/m³, six wall/gran planes, hooke/stiffness k_n = 1e5 N/m,
+  k_t = 2.5e4 N/m, μ = 0.5, gravity −9.81 z, Δt = 2e-6 s, neighbor skin 0.2 mm; one
+  untimed step, then ``run 2000``; the rate is N·2000 / (its last "Loop time").
+  By hand: ``cd benchmarks/out/w1 && liggghts -echo none -var N 20000 -var L 0.076
+  -in in.bed`` (2 ranks: ``mpirun --allow-run-as-root -np 2 liggghts ...``).
+* YADE ``-j1`` / ``-j2``: ``yade -x yade_bed.py N 2000`` loads ``bed_N.dump``
+  (FrictMat young = 1e8 gives k_n ≈ 1e5 N/m at r = 1 mm, k_t/k_n = poisson = 0.25;
+  NewtonIntegrator damping 0.2), runs 1000 steps, then times 2000 (it prints
+  particle-steps/s).
 * de_domain, 1 and 2 Numba threads: ``dem_throughput.measure`` (the same dump,
   2000 steps after one untimed step).
 
@@ -33,20 +42,131 @@ from pathlib import Path
 
 BASE_ENV = dict(os.environ)  # the peers get the environment as it was, without de_domain's threading defaults
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import beds  # noqa: E402
 import dem_throughput as ours  # noqa: E402
 
-W1 = ours.W1
 STEPS = 2000
-BOX = {5000: 0.038, 20000: 0.076}
-SEED = 86028121
 ENV = dict(BASE_ENV, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
 
+# LIGGGHTS 3.8 deck; @NAME@ is filled in by peer_inputs(), ${N} and ${L} are LIGGGHTS variables.
+LIGGGHTS_DECK = """\
+# W1 (LIGGGHTS side), written by benchmarks/compare_peers.py: load the de_domain-settled bed
+# bed_${N}.dump (benchmarks/beds.py), same walls, stiffness, friction and dt, time a block of steps.
+#   liggghts -echo none -var N 20000 -var L 0.076 -in in.bed     (2 ranks: mpirun -np 2 liggghts ...)
+# vars: N (spheres), L (box side, m); rate = N * @STEPS@ / (the last "Loop time")
+atom_style\tgranular
+atom_modify\tmap array
+boundary\tf f f
+newton\t\toff
+communicate\tsingle vel yes
+units\t\tsi
+region\t\tbox block 0 ${L} 0 ${L} 0 @H@ units box
+create_box\t1 box
+neighbor\t@SKIN@ bin
+neigh_modify\tdelay 0
+
+read_dump\tbed_${N}.dump @TIMESTEP@ x y z radius box no add yes
+set\t\tgroup all density @DENSITY@
+
+fix m1 all property/global kn peratomtypepair 1 1.0e5
+fix m2 all property/global kt peratomtypepair 1 2.5e4
+fix m3 all property/global gamman peratomtypepair 1 2.0e4
+fix m4 all property/global gammat peratomtypepair 1 0.0
+fix m5 all property/global coefficientFriction peratomtypepair 1 @FRICTION@
+fix m6 all property/global youngsModulus peratomtype 1.0e8
+fix m7 all property/global poissonsRatio peratomtype @POISSON@
+fix m8 all property/global coefficientRestitution peratomtypepair 1 @RESTITUTION@
+
+pair_style gran model hooke/stiffness tangential history limitForce on tangential_damping off
+pair_coeff * *
+
+fix xw1 all wall/gran model hooke/stiffness tangential history primitive type 1 xplane 0.0 &
+    limitForce on tangential_damping off
+fix xw2 all wall/gran model hooke/stiffness tangential history primitive type 1 xplane ${L} &
+    limitForce on tangential_damping off
+fix yw1 all wall/gran model hooke/stiffness tangential history primitive type 1 yplane 0.0 &
+    limitForce on tangential_damping off
+fix yw2 all wall/gran model hooke/stiffness tangential history primitive type 1 yplane ${L} &
+    limitForce on tangential_damping off
+fix zw1 all wall/gran model hooke/stiffness tangential history primitive type 1 zplane 0.0 &
+    limitForce on tangential_damping off
+fix zw2 all wall/gran model hooke/stiffness tangential history primitive type 1 zplane @H@ &
+    limitForce on tangential_damping off
+
+fix integr all nve/sphere
+fix grav all gravity @G@ vector 0.0 0.0 -1.0
+compute rke all erotate/sphere
+thermo_style custom step atoms ke c_rke
+thermo 1000
+thermo_modify lost ignore norm no
+timestep @DT@
+run 1
+# timed block
+run @STEPS@
+"""
+
+# YADE script (run with ``yade -x``); @NAME@ is filled in by peer_inputs().
+YADE_SCRIPT = """\
+# W1 (YADE side), written by benchmarks/compare_peers.py: load the de_domain-settled bed
+# bed_N.dump (benchmarks/beds.py), same stiffness/friction/dt, time a block of steps.
+#   yade -j1 -x yade_bed.py 20000 @STEPS@
+import sys, time, math
+N = int(sys.argv[1]) if len(sys.argv) > 1 else 5000
+STEPS = int(sys.argv[2]) if len(sys.argv) > 2 else @STEPS@
+lines = open('bed_%d.dump' % N).read().split('\\n')
+L = float(lines[5].split()[1]); H = float(lines[7].split()[1])
+cols = lines[8].split()[2:]
+ir, ix, iy, iz = [cols.index(c) for c in ('radius', 'x', 'y', 'z')]
+# young = 1e8 in FrictPhys: k_n = 2 E r1 r2 / (r1 + r2) = 1e5 N/m at r = 1 mm; k_t = poisson * k_n
+mat = O.materials.append(FrictMat(young=1e8, poisson=0.25, frictionAngle=math.atan(@FRICTION@), density=@DENSITY@))
+for ln in lines[9:]:
+    p = ln.split()
+    if len(p) < len(cols): continue
+    O.bodies.append(sphere((float(p[ix]), float(p[iy]), float(p[iz])), float(p[ir]), material=mat))
+for ax, pos in ((0, 0.0), (0, L), (1, 0.0), (1, L), (2, 0.0), (2, H)):
+    O.bodies.append(wall(pos, axis=ax, sense=0, material=mat))
+O.engines = [
+    ForceResetter(),
+    InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()], verletDist=@SKIN@),
+    InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],
+                    [Ip2_FrictMat_FrictMat_FrictPhys()],
+                    [Law2_ScGeom_FrictPhys_CundallStrack()]),
+    NewtonIntegrator(damping=0.2, gravity=(0, 0, @G@)),
+]
+O.dt = @DT@
+O.run(1000, True)
+t = time.time(); O.run(STEPS, True); dt = time.time() - t
+nc = sum(1 for i in O.interactions if i.isReal)
+print("YADE N=%d steps=%d wall=%.3f s  particle-steps/s=%.3e  real contacts/particle=%.2f threads=%d"
+      % (N, STEPS, dt, N * STEPS / dt, 2.0 * nc / N, O.numThreads))
+"""
+
+
+def _fill(template, **values):
+    for key, value in values.items():
+        template = template.replace(f"@{key}@", str(value))
+    assert "@" not in template, template
+    return template
+
+
+def peer_inputs(sizes):
+    """Make (if needed) the beds of ``sizes`` and write the LIGGGHTS deck and the YADE script beside them,
+    in ``benchmarks/out/w1``; returns the paths of all of them."""
+    beds_ = [beds.bed_file(n) for n in sizes]
+    m = beds.MATERIAL
+    values = dict(STEPS=STEPS, H=f"{beds.HEIGHT:g}", SKIN=f"{beds.SKIN:g}", TIMESTEP=beds.SETTLE_STEPS,
+                  DENSITY=f"{m['density']:g}", FRICTION=f"{m['friction']:g}", POISSON=f"{m['poisson']:g}",
+                  RESTITUTION=f"{m['restitution']:g}", DT=f"{beds.DT:g}")
+    deck, script = beds.OUT / "in.bed", beds.OUT / "yade_bed.py"
+    deck.write_text(_fill(LIGGGHTS_DECK, G=f"{-beds.GRAVITY:g}", **values))
+    script.write_text(_fill(YADE_SCRIPT, G=f"{beds.GRAVITY:g}", **values))
+    return [deck, script] + beds_
+
 
 def liggghts(workdir, n, ranks):
-    L = BOX[n]
-    cmd = ["liggghts", "-echo", "none", "-var", "N", str(n), "-var", "L", str(L), "-var", "Lm", f"{L - 0.0013:.4f}",
-           "-var", "seed", str(SEED), "-in", "in.bed", "-log", f"log.{n}.{ranks}"]
+    cmd = ["liggghts", "-echo", "none", "-var", "N", str(n), "-var", "L", f"{beds.BOX[n]:g}", "-in", "in.bed",
+           "-log", f"log.{n}.{ranks}"]
     if ranks > 1:
         cmd = ["mpirun", "--allow-run-as-root", "-np", str(ranks)] + cmd
     subprocess.run(cmd, cwd=workdir, env=dict(ENV, OMP_NUM_THREADS="1"), check=True, stdout=subprocess.DEVNULL,
@@ -69,32 +189,37 @@ def de_domain(n, threads):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 20000])
-    ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--peers", nargs="+", default=["liggghts", "yade"])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", default=sorted(beds.BOX), choices=sorted(beds.BOX),
+                    help="bed sizes (default: %(default)s)")
+    ap.add_argument("--repeats", type=int, default=1, help="runs per configuration, median (default: %(default)s)")
+    ap.add_argument("--peers", nargs="+", default=["liggghts", "yade"], choices=["liggghts", "yade"],
+                    help="peer codes to run beside de_domain (default: %(default)s)")
     args = ap.parse_args(argv)
     for exe in args.peers:
         if shutil.which(exe) is None:
             sys.exit(f"compare_peers: '{exe}' is not installed (make bench-peers installs liggghts and yade)")
     from de_domain import threading as dthreading
 
+    inputs = peer_inputs(args.sizes)  # the beds are made here on the first run (once)
+    beds.bed_file(5000)  # ours.jit_time's bed
     load0 = os.getloadavg()
     print(f"# W1 peers, {STEPS} timed steps; de_domain threading {dthreading.describe()}")
+    print(f"# peer inputs: {beds.shown(beds.OUT)}/ ({', '.join(p.name for p in inputs)})")
     print(f"# load average before: {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
     ours.jit_time()  # compile / load the cache before timing
     rows = []
     with tempfile.TemporaryDirectory(prefix="w1_peers_") as tmp:
-        for name in ("in.bed", "yade_bed.py", "bed_5000.dump", "bed_20000.dump"):
-            shutil.copy(W1 / name, tmp)
+        for path in inputs:
+            shutil.copy(path, tmp)
         for n in args.sizes:
             for cores in (1, 2):
                 rate = {}
-                runs = {"de_domain": lambda: de_domain(n, cores)}
+                runs = {"de_domain": lambda n=n, cores=cores: de_domain(n, cores)}
                 if "liggghts" in args.peers:
-                    runs["LIGGGHTS"] = lambda: liggghts(tmp, n, cores)
+                    runs["LIGGGHTS"] = lambda n=n, cores=cores: liggghts(tmp, n, cores)
                 if "yade" in args.peers:
-                    runs["YADE"] = lambda: yade(tmp, n, cores)
+                    runs["YADE"] = lambda n=n, cores=cores: yade(tmp, n, cores)
                 samples = {k: [] for k in runs}
                 for _ in range(args.repeats):  # interleaved, so load changes hit every code alike
                     for k, f in runs.items():

@@ -1,14 +1,16 @@
-"""DEM throughput on the W1 settled bed (issue 3 "Performance"; shared/benchmarks/w1).
+"""DEM throughput on the W1 settled bed (issue 3 "Performance").
 
     .venv/bin/python benchmarks/dem_throughput.py                 # 5k, 20k, 80k; 1 and 2 threads
     .venv/bin/python benchmarks/dem_throughput.py --sizes 5000 --threads 1 --repeats 1
 
-Work: the LIGGGHTS-settled beds ``bed_5000.dump`` / ``bed_20000.dump`` of
-``../shared/benchmarks/w1`` (r 0.8–1.2 mm, ρ 2650 kg/m³) in a box [0, L]² × [0, 0.06] m
-of six plane walls, gravity −9.81 z, linear law with k_n = 2 E r* = 1e5 N/m at
-r = 1 mm (E = 5e7 Pa), k_t/k_n = 0.25 (κ = 4), μ = 0.5, restitution 0.5 (the
-LIGGGHTS deck's coefficientRestitution), no background damping, Δt = 2e-6 s fixed,
-Verlet skin 0.2 mm (the deck's ``neighbor 0.0002``).
+Work: the W1 beds of 5,000 and 20,000 spheres settled by de_domain itself
+(``benchmarks/beds.py``: made on the first run into ``benchmarks/out/w1/bed_N.dump``
+— 16 s for 5k, a few minutes for 20k on 2 cores — then reused; r 0.8–1.2 mm,
+ρ 2650 kg/m³) in a box [0, L]² × [0, 0.06] m of six plane walls, gravity −9.81 z,
+linear law with k_n = 2 E r* = 1e5 N/m at r = 1 mm (E = 5e7 Pa), k_t/k_n = 0.25
+(κ = 4), μ = 0.5, restitution 0.5 (the LIGGGHTS deck's coefficientRestitution), no
+background damping, Δt = 2e-6 s fixed, Verlet skin 0.2 mm (the deck's
+``neighbor 0.0002``).
 The 80,000 bed is the 20,000 bed tiled 2 × 2 in x and y (copies shifted by L = 0.076 m;
 box 0.152 × 0.152 × 0.06 m, walls only on the outer faces: the copies touch along the
 former inner walls, a few spheres there start with small overlaps and push apart).
@@ -35,48 +37,14 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-W1 = Path(__file__).resolve().parents[2] / "shared" / "benchmarks" / "w1"
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import de_domain  # noqa: E402,F401  (sets the threading defaults before Numba launches threads)
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import beds  # noqa: E402
+from beds import DT, bed, make_engine  # noqa: E402
+
 STEPS = 2000
-DT = 2e-6
-HEIGHT = 0.06
-SKIN = 2e-4
-
-
-def load_dump(path):
-    """LIGGGHTS dump (9 header lines, ``id radius x y z``) → (pos, radius, L)."""
-    lines = Path(path).read_text().split("\n")
-    L = float(lines[5].split()[1])
-    data = np.loadtxt(lines[9:], ndmin=2)
-    data = data[np.argsort(data[:, 0])]
-    return data[:, 2:5].copy(), data[:, 1].copy(), L
-
-
-def bed(n):
-    """(pos, radius, L) of the W1 bed with n = 5000, 20000 or 80000 (2 × 2 tiling of 20k)."""
-    if n in (5000, 20000):
-        return load_dump(W1 / f"bed_{n}.dump")
-    if n == 80000:
-        pos, radius, L = load_dump(W1 / "bed_20000.dump")
-        tiles = [pos + np.array([ix * L, iy * L, 0.0]) for ix in (0, 1) for iy in (0, 1)]
-        return np.concatenate(tiles), np.tile(radius, 4), 2 * L
-    raise ValueError(f"no W1 bed of {n} spheres (5000, 20000, 80000)")
-
-
-def make_engine(pos, radius, L):
-    from de_domain import Engine, Material, Particles, PlaneWall
-
-    mat = [Material(density=2650.0, young=5e7, poisson=0.25, friction=0.5, restitution=0.5,
-                    stiffness_ratio=4.0)]
-    p = Particles.from_spheres(pos, radius, materials=mat)
-    walls = [PlaneWall((0, 0, 0), (1, 0, 0)), PlaneWall((L, 0, 0), (-1, 0, 0)),
-             PlaneWall((0, 0, 0), (0, 1, 0)), PlaneWall((0, L, 0), (0, -1, 0)),
-             PlaneWall((0, 0, 0), (0, 0, 1)), PlaneWall((0, 0, HEIGHT), (0, 0, -1))]
-    return Engine(p, mat, walls=walls, gravity=(0.0, 0.0, -9.81), dt=DT, skin=SKIN)
 
 
 def jit_time():
@@ -132,6 +100,8 @@ def run_table(sizes, threads_list, repeats, steps=STEPS, out=print, cold=True):
 
     from de_domain import threading as dthreading
 
+    for n in sorted({5000} | {20000 if n == 80000 else n for n in sizes}):
+        beds.bed_file(n)  # made once, before any timing (and before the cold-cache subprocess reads it)
     cold_jit = cold_jit_time() if cold else float("nan")
     jit = jit_time()
     out(f"# de_domain W1 throughput: {steps} steps, dt = {DT:g} s; threading {dthreading.describe()}; "
@@ -149,19 +119,20 @@ def run_table(sizes, threads_list, repeats, steps=STEPS, out=print, cold=True):
             row = dict(best, wall=statistics.median(walls), rate=n * steps / statistics.median(walls),
                        rates=[r["rate"] for r in runs])
             rows.append(row)
-            out(f"{n:>7} {threads:>7} {row['wall']:>9.3f} {row['cpu']:>8.2f} {row['rate']:>17.3e} {row['contacts']:>17.2f} "
-                f"{row['mem']:>14.0f} {row['builds']:>8}   "
+            out(f"{n:>7} {threads:>7} {row['wall']:>9.3f} {row['cpu']:>8.2f} {row['rate']:>17.3e} "
+                f"{row['contacts']:>17.2f} {row['mem']:>14.0f} {row['builds']:>8}   "
                 + " ".join(f"{r:.2e}" for r in row["rates"]))
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return rows
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 20000, 80000])
-    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--steps", type=int, default=STEPS)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[5000, 20000, 80000], choices=[5000, 20000, 80000],
+                    help="bed sizes (default: %(default)s)")
+    ap.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="Numba thread counts (default: %(default)s)")
+    ap.add_argument("--repeats", type=int, default=3, help="runs per (size, threads), median (default: %(default)s)")
+    ap.add_argument("--steps", type=int, default=STEPS, help="timed steps (default: %(default)s)")
     ap.add_argument("--no-cold", action="store_true", help="skip the empty-cache compilation timing")
     args = ap.parse_args(argv)
     run_table(args.sizes, args.threads, args.repeats, args.steps, cold=not args.no_cold)

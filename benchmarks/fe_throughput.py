@@ -120,7 +120,7 @@ def main() -> None:
         for ranks in args.ranks:
             command = ["mpirun", "-n", str(ranks), sys.executable, __file__, "--worker", str(path)]
             output = subprocess.run(command, env=env, cwd=ROOT, check=True, capture_output=True, text=True).stdout
-            rows.append(json.loads(next(l for l in output.splitlines() if l.startswith("RESULT "))[7:]))
+            rows.append(json.loads(next(line for line in output.splitlines() if line.startswith("RESULT "))[7:]))
             print(f"  done: h = {size:g} m, {ranks} rank(s)", file=sys.stderr, flush=True)
     header = (f"{'cells':>8} {'ranks':>5} | {'mixed step':>10} {'cell-steps/s':>13} {'/floor':>6} | "
               f"{'displ. step':>11} {'cell-steps/s':>13} {'/floor':>6} | {'floor':>8} | {'B/cell':>13}")
@@ -132,7 +132,8 @@ def main() -> None:
         print(f"{r['cells']:>8} {r['ranks']:>5} | {1e3 * r['mixed']:>10.2f} {r['cells'] / r['mixed']:>13.3e} "
               f"{r['mixed_ratio']:>6.2f} | {1e3 * r['displacement']:>11.2f} "
               f"{r['cells'] / r['displacement']:>13.3e} {r['displacement_ratio']:>6.2f} | "
-              f"{1e3 * r['floor']:>8.2f} | {r['mixed_bytes_per_cell']:>6.0f} / {r['displacement_bytes_per_cell']:>4.0f}")
+              f"{1e3 * r['floor']:>8.2f} | {r['mixed_bytes_per_cell']:>6.0f} / "
+              f"{r['displacement_bytes_per_cell']:>4.0f}")
 
 
 if __name__ == "__main__":

@@ -34,10 +34,11 @@ class _Section(BaseModel):
 # --------------------------------------------------------------------------- case
 class CaseInfo(_Section):
     name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
-    kind: Literal["dem", "direct_shear", "fe", "coupled"] = Field(description="what to run: 'dem' (a DEM simulation of particles and walls), "
-                                                                   "'direct_shear' (specimen generation + the direct shear test, DESIGN §3), "
-                                                                   "'fe' (the explicit mixed u-p solid on a gmsh mesh, DESIGN §4), "
-                                                                   "'coupled' (FE solid and DEM particles through an interface, DESIGN §5)")
+    kind: Literal["dem", "direct_shear", "fe", "coupled"] = Field(
+        description="what to run: 'dem' (a DEM simulation of particles and walls), "
+                    "'direct_shear' (specimen generation + the direct shear test, DESIGN §3), "
+                    "'fe' (the explicit mixed u-p solid on a gmsh mesh, DESIGN §4), "
+                    "'coupled' (FE solid and DEM particles through an interface, DESIGN §5)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -49,7 +50,9 @@ class TimeSection(_Section):
 
 
 class OutputSection(_Section):
-    interval: float = Field(default=0.0, ge=0, description="time between CSV rows and VTK frames [s]; 0 = 20 frames per run")
+    interval: float = Field(
+        default=0.0, ge=0,
+        description="time between CSV rows and VTK frames [s]; 0 = 20 frames per run")
     vtk: bool = Field(default=True, description="write particles/walls as VTU + PVD for ParaView")
     checkpoint_interval: float = Field(default=600.0, gt=0, description="wall-clock time between checkpoints [s]")
     progress_interval: float = Field(default=2.0, gt=0, description="wall-clock time between progress lines [s]")
@@ -69,11 +72,18 @@ class DemMaterial(_Section):
 
 
 class DemParticles(_Section):
-    source: Literal["cloud", "file"] = Field(description="'cloud': random non-overlapping spheres in a box; 'file': a packing file")
-    file: Optional[str] = Field(default=None, description="packing (.npz, or text 'x y z r' per line), relative to the case file")
+    source: Literal["cloud", "file"] = Field(
+        description="'cloud': random non-overlapping spheres in a box; 'file': a packing file")
+    file: Optional[str] = Field(
+        default=None,
+        description="packing (.npz, or text 'x y z r' per line), relative to the case file")
     count: Optional[int] = Field(default=None, gt=0, description="number of spheres for source='cloud' [-]")
-    box: Optional[list[Vec3]] = Field(default=None, min_length=2, max_length=2, description="[[xmin,ymin,zmin],[xmax,ymax,zmax]] of the cloud [m]")
-    radius: Optional[list[float]] = Field(default=None, min_length=2, max_length=2, description="[r_min, r_max], uniform radii for source='cloud' [m]")
+    box: Optional[list[Vec3]] = Field(
+        default=None, min_length=2, max_length=2,
+        description="[[xmin,ymin,zmin],[xmax,ymax,zmax]] of the cloud [m]")
+    radius: Optional[list[float]] = Field(
+        default=None, min_length=2, max_length=2,
+        description="[r_min, r_max], uniform radii for source='cloud' [m]")
     material: str = Field(description="material name of these spheres")
     velocity: Vec3 = Field(default=[0.0, 0.0, 0.0], description="initial velocity of every sphere [m/s]")
 
@@ -82,13 +92,17 @@ class DemWall(_Section):
     type: Literal["plane", "facets"] = Field(description="'plane': infinite plane; 'facets': triangle mesh file")
     point: Optional[Vec3] = Field(default=None, description="a point on the plane [m]")
     normal: Optional[Vec3] = Field(default=None, description="plane normal, pointing into the particles [-]")
-    file: Optional[str] = Field(default=None, description="triangle mesh (.stl or gmsh .msh) for type='facets', relative to the case file")
+    file: Optional[str] = Field(
+        default=None,
+        description="triangle mesh (.stl or gmsh .msh) for type='facets', relative to the case file")
     velocity: Vec3 = Field(default=[0.0, 0.0, 0.0], description="prescribed translation velocity [m/s]")
     material: str = Field(description="material name of the wall")
 
 
 class DemSection(_Section):
-    contact_law: Literal["linear", "hertz"] = Field(default="linear", description="'linear' (Cundall-Strack) or 'hertz' (Hertz-Mindlin)")
+    contact_law: Literal["linear", "hertz"] = Field(
+        default="linear",
+        description="'linear' (Cundall-Strack) or 'hertz' (Hertz-Mindlin)")
     gravity: Vec3 = Field(default=[0.0, 0.0, -9.81], description="gravitational acceleration [m/s^2]")
     local_damping: float = Field(default=0.0, ge=0, lt=1, description="non-viscous background damping alpha_b [-]")
     viscous_damping: float = Field(default=0.0, ge=0, description="viscous background damping alpha_v [1/s]")
@@ -99,74 +113,163 @@ class DemSection(_Section):
 
 # --------------------------------------------------------------------------- direct shear (DESIGN §3)
 class SpecimenSection(_Section):
-    source: Literal["generate", "file"] = Field(default="generate", description="'generate': build the specimen (method below); 'file': load a packing (.npz or text 'x y z r')")
+    source: Literal["generate", "file"] = Field(
+        default="generate",
+        description="'generate': build the specimen (method below); 'file': load a packing (.npz or text 'x y z r')")
     file: Optional[str] = Field(default=None, description="packing file for source='file', relative to the case file")
-    method: Literal["under_compaction", "radius_expansion"] = Field(default="under_compaction", description="'under_compaction': multi-layer gravity deposition with a compaction plate (Jiang et al. 2003); 'radius_expansion': grow radii in the closed box")
-    sieve: str = Field(default="thesis_sand", description="sieve-curve preset (de_domain.packing.SIEVE_PRESETS), unless sieve_diameters/sieve_passing are given")
-    sieve_diameters: Optional[list[float]] = Field(default=None, min_length=2, description="custom sieve curve: increasing sieve sizes [m]")
-    sieve_passing: Optional[list[float]] = Field(default=None, min_length=2, description="custom sieve curve: cumulative mass fraction passing, 0 ... 1 [-]")
-    scale: float = Field(default=1.0, gt=0, le=100, description="scale factor applied to every diameter (thesis: 4) [-]")
-    truncate_below: Optional[float] = Field(default=None, gt=0, description="drop the fines below this (scaled) diameter [m]")
-    truncate_above: Optional[float] = Field(default=None, gt=0, description="drop the grains above this (scaled) diameter [m]")
-    void_ratio: float = Field(default=0.65, gt=0.3, lt=1.5, description="target void ratio e = V_voids/V_solids of the specimen [-]")
+    method: Literal["under_compaction", "radius_expansion"] = Field(
+        default="under_compaction",
+        description="'under_compaction': multi-layer gravity deposition with a compaction plate (Jiang "
+                    "et al. 2003); 'radius_expansion': grow radii in the closed box")
+    sieve: str = Field(
+        default="thesis_sand",
+        description="sieve-curve preset (de_domain.packing.SIEVE_PRESETS), "
+                    "unless sieve_diameters/sieve_passing are given")
+    sieve_diameters: Optional[list[float]] = Field(
+        default=None, min_length=2,
+        description="custom sieve curve: increasing sieve sizes [m]")
+    sieve_passing: Optional[list[float]] = Field(
+        default=None, min_length=2,
+        description="custom sieve curve: cumulative mass fraction passing, 0 ... 1 [-]")
+    scale: float = Field(
+        default=1.0, gt=0, le=100,
+        description="scale factor applied to every diameter (thesis: 4) [-]")
+    truncate_below: Optional[float] = Field(
+        default=None, gt=0,
+        description="drop the fines below this (scaled) diameter [m]")
+    truncate_above: Optional[float] = Field(
+        default=None, gt=0,
+        description="drop the grains above this (scaled) diameter [m]")
+    void_ratio: float = Field(
+        default=0.65, gt=0.3, lt=1.5,
+        description="target void ratio e = V_voids/V_solids of the specimen [-]")
     tolerance: float = Field(default=0.01, gt=0, le=0.1, description="allowed |e - target| [-]")
-    layers: Optional[int] = Field(default=None, ge=1, le=50, description="number of layers (under_compaction); default from the target: ceil(V_solid / (cloud_solid_fraction * generation volume))")
-    undercompaction: float = Field(default=0.03, ge=0, le=0.3, description="U_1: the first layer is compacted to (1 + U_1) x its nominal thickness, U decreasing linearly to 0 at the last layer [-]")
-    cloud_solid_fraction: float = Field(default=0.2, gt=0.01, le=0.35, description="solid fraction of each generated cloud [-]")
-    deposition_friction: Optional[float] = Field(default=None, ge=0, description="particle friction during generation (lowered automatically when the plate cannot reach its height); default: the sand's [-]")
-    deposition_rolling_friction: Optional[float] = Field(default=None, ge=0, description="rolling friction eta_r of the grains during generation (|M_r| <= eta_r f_n r; lowered with the friction); loose targets need it; default: the sand's [-]")
-    deposition_rolling_stiffness: Optional[float] = Field(default=None, ge=0, description="rolling stiffness beta_r of the grains during generation (k_r = beta_r k_t r^2); default: the sand's, or 1 when only deposition_rolling_friction is given [-]")
-    density_scale: float = Field(default=100.0, ge=1, le=1e4, description="mass scaling during generation only: density x this and gravity / this (real weights), so dt grows by its square root [-]")
+    layers: Optional[int] = Field(
+        default=None, ge=1, le=50,
+        description="number of layers (under_compaction); default from the target: "
+                    "ceil(V_solid / (cloud_solid_fraction * generation volume))")
+    undercompaction: float = Field(
+        default=0.03, ge=0, le=0.3,
+        description="U_1: the first layer is compacted to (1 + U_1) x its nominal thickness, "
+                    "U decreasing linearly to 0 at the last layer [-]")
+    cloud_solid_fraction: float = Field(
+        default=0.2, gt=0.01, le=0.35,
+        description="solid fraction of each generated cloud [-]")
+    deposition_friction: Optional[float] = Field(
+        default=None, ge=0,
+        description="particle friction during generation (lowered automatically when the "
+                    "plate cannot reach its height); default: the sand's [-]")
+    deposition_rolling_friction: Optional[float] = Field(
+        default=None, ge=0,
+        description="rolling friction eta_r of the grains during generation (|M_r| <= eta_r f_n r; "
+                    "lowered with the friction); loose targets need it; default: the sand's [-]")
+    deposition_rolling_stiffness: Optional[float] = Field(
+        default=None, ge=0,
+        description="rolling stiffness beta_r of the grains during generation (k_r = beta_r k_t r^2); "
+                    "default: the sand's, or 1 when only deposition_rolling_friction is given [-]")
+    density_scale: float = Field(
+        default=100.0, ge=1, le=1e4,
+        description="mass scaling during generation only: density x this and gravity / this "
+                    "(real weights), so dt grows by its square root [-]")
     plate_velocity: float = Field(default=0.3, gt=0, description="speed of the compaction plate [m/s]")
-    plate_stress_limit: float = Field(default=20e3, gt=0, description="plate stress above which the friction is halved to let the layer compact [Pa]")
-    friction_reduction: float = Field(default=0.5, gt=0, lt=1, description="factor on the generation friction each time the plate stalls [-]")
-    hold_friction: Optional[float] = Field(default=None, ge=0, description="grain friction once the plate holds a layer at its height (contact history kept; the rolling friction follows in proportion); loose targets: the deposition friction, so the layer does not creep below the plate; default: the friction reached [-]")
-    local_damping: float = Field(default=0.5, ge=0, lt=1, description="local (Cundall) damping during generation (the test uses [dem] local_damping) [-]")
-    unbalanced_force: float = Field(default=0.01, gt=0, le=0.5, description="a layer ends when the unbalanced force ratio is below this [-]")
+    plate_stress_limit: float = Field(
+        default=20e3, gt=0,
+        description="plate stress above which the friction is halved to let the layer compact [Pa]")
+    friction_reduction: float = Field(
+        default=0.5, gt=0, lt=1,
+        description="factor on the generation friction each time the plate stalls [-]")
+    hold_friction: Optional[float] = Field(
+        default=None, ge=0,
+        description="grain friction once the plate holds a layer at its height (contact history kept; "
+                    "the rolling friction follows in proportion); loose targets: the deposition friction, "
+                    "so the layer does not creep below the plate; default: the friction reached [-]")
+    local_damping: float = Field(
+        default=0.5, ge=0, lt=1,
+        description="local (Cundall) damping during generation (the test uses [dem] local_damping) [-]")
+    unbalanced_force: float = Field(
+        default=0.01, gt=0, le=0.5,
+        description="a layer ends when the unbalanced force ratio is below this [-]")
     max_steps_per_layer: int = Field(default=200000, gt=0, description="safety cap on steps per layer [-]")
 
 
 class DirectShearSection(_Section):
     box_length: float = Field(default=0.06, gt=0, description="inner side L of the square shear box [m]")
     sample_height: float = Field(default=0.025, gt=0, description="specimen height h (box split at h/2) [m]")
-    normal_stress: float = Field(default=100e3, gt=0, le=10e6, description="normal stress sigma_n held by the servo top plate [Pa]")
-    shear_distance: float = Field(default=0.009, gt=0, description="horizontal displacement of the upper half at the end [m] (15 % of L = 9 mm)")
-    shear_velocity: Optional[float] = Field(default=None, gt=0, description="velocity of the upper half [m/s]; default from inertial_number")
-    inertial_number: float = Field(default=1e-3, gt=0, le=0.1, description="target I = (v/h) d50 sqrt(rho/sigma_n) when shear_velocity is not given [-]")
-    ramp_distance: float = Field(default=2e-4, ge=0, description="the shear velocity ramps up linearly over this displacement [m]")
-    servo_gain: float = Field(default=0.3, gt=0, le=1, description="fraction of the stress error the servo removes per update (PFC-style gain) [-]")
-    servo_integral: float = Field(default=0.01, ge=0, le=0.2, description="integral action: per update the integral velocity grows by this x the proportional one [-]")
-    servo_interval: int = Field(default=2, ge=1, le=1000, description="DEM steps between servo updates; the plate velocity is held in between and the servo law uses this x dt [-]")
+    normal_stress: float = Field(
+        default=100e3, gt=0, le=10e6,
+        description="normal stress sigma_n held by the servo top plate [Pa]")
+    shear_distance: float = Field(
+        default=0.009, gt=0,
+        description="horizontal displacement of the upper half at the end [m] (15 % of L = 9 mm)")
+    shear_velocity: Optional[float] = Field(
+        default=None, gt=0,
+        description="velocity of the upper half [m/s]; default from inertial_number")
+    inertial_number: float = Field(
+        default=1e-3, gt=0, le=0.1,
+        description="target I = (v/h) d50 sqrt(rho/sigma_n) when shear_velocity is not given [-]")
+    ramp_distance: float = Field(
+        default=2e-4, ge=0,
+        description="the shear velocity ramps up linearly over this displacement [m]")
+    servo_gain: float = Field(
+        default=0.3, gt=0, le=1,
+        description="fraction of the stress error the servo removes per update (PFC-style gain) [-]")
+    servo_integral: float = Field(
+        default=0.01, ge=0, le=0.2,
+        description="integral action: per update the integral velocity grows by this x the proportional one [-]")
+    servo_interval: int = Field(
+        default=2, ge=1, le=1000,
+        description="DEM steps between servo updates; the plate velocity is held in "
+                    "between and the servo law uses this x dt [-]")
     servo_max_velocity: float = Field(default=0.05, gt=0, description="largest servo plate speed [m/s]")
-    consolidation_tolerance: float = Field(default=0.01, gt=0, le=0.1, description="consolidation ends when |sigma - sigma_n|/sigma_n is below this ... [-]")
-    consolidation_unbalanced_force: float = Field(default=0.02, gt=0, le=0.5, description="... and the unbalanced force ratio is below this [-]")
+    consolidation_tolerance: float = Field(
+        default=0.01, gt=0, le=0.1,
+        description="consolidation ends when |sigma - sigma_n|/sigma_n is below this ... [-]")
+    consolidation_unbalanced_force: float = Field(
+        default=0.02, gt=0, le=0.5,
+        description="... and the unbalanced force ratio is below this [-]")
     max_consolidation_steps: int = Field(default=100000, gt=0, description="safety cap on consolidation steps [-]")
     sand_material: str = Field(default="sand", description="material name of the grains ([[dem.materials]])")
-    side_wall_material: str = Field(default="side_wall", description="material name of the box side walls (thesis: frictionless)")
+    side_wall_material: str = Field(
+        default="side_wall",
+        description="material name of the box side walls (thesis: frictionless)")
     plate_material: str = Field(default="plate", description="material name of the top and bottom plates (rough)")
     rows: int = Field(default=300, ge=10, le=100000, description="number of CSV rows over the shear distance [-]")
-    residual_fraction: float = Field(default=0.2, gt=0, lt=1, description="residual = mean over the last fraction of the shear distance [-]")
-    band_thickness: float = Field(default=0.0, ge=0, description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 2 d50")
+    residual_fraction: float = Field(
+        default=0.2, gt=0, lt=1,
+        description="residual = mean over the last fraction of the shear distance [-]")
+    band_thickness: float = Field(
+        default=0.0, ge=0,
+        description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 2 d50")
 
 
 # --------------------------------------------------------------------------- fe
 class FeMaterial(_Section):
     E: float = Field(gt=0, description="Young's modulus [Pa]")
-    nu: float = Field(ge=0, lt=0.5, description="Poisson's ratio [-] (mixed u-p default alpha_tau is stable up to 0.499)")
+    nu: float = Field(
+        ge=0, lt=0.5,
+        description="Poisson's ratio [-] (mixed u-p default alpha_tau is stable up to 0.499)")
     rho: float = Field(gt=0, description="density [kg/m^3]")
-    group: Optional[str] = Field(default=None, description="cell physical-group name this material fills; omit for the whole mesh")
+    group: Optional[str] = Field(
+        default=None,
+        description="cell physical-group name this material fills; omit for the whole mesh")
 
 
 class FeBoundaryCondition(_Section):
-    type: Literal["fixed", "velocity"] = Field(description="'fixed' (zero displacement) or 'velocity' (prescribed velocity)")
+    type: Literal["fixed", "velocity"] = Field(
+        description="'fixed' (zero displacement) or 'velocity' (prescribed velocity)")
     boundary: str = Field(min_length=1, description="facet physical-group name in the mesh")
-    components: list[Annotated[int, Field(ge=0, le=2)]] = Field(default=[0, 1, 2], min_length=1, max_length=3, description="constrained components, 0=x 1=y 2=z")
+    components: list[Annotated[int, Field(ge=0, le=2)]] = Field(
+        default=[0, 1, 2], min_length=1, max_length=3,
+        description="constrained components, 0=x 1=y 2=z")
     velocity: Optional[Vec3] = Field(default=None, description="prescribed velocity for type='velocity' [m/s]")
-    ramp: Optional[float] = Field(default=None, gt=0, description="time over which the velocity rises linearly from 0 [s]")
+    ramp: Optional[float] = Field(
+        default=None, gt=0,
+        description="time over which the velocity rises linearly from 0 [s]")
 
 
 class FeLoad(_Section):
-    type: Literal["traction", "pressure", "body_force"] = Field(description="'traction' (vector), 'pressure' (normal, compressive > 0) on a boundary, or 'body_force'")
+    type: Literal["traction", "pressure", "body_force"] = Field(
+        description="'traction' (vector), 'pressure' (normal, compressive > 0) on a boundary, or 'body_force'")
     boundary: Optional[str] = Field(default=None, description="facet physical-group name (traction, pressure)")
     traction: Optional[Vec3] = Field(default=None, description="traction vector for type='traction' [Pa]")
     pressure: Optional[float] = Field(default=None, description="normal pressure for type='pressure' [Pa]")
@@ -175,32 +278,50 @@ class FeLoad(_Section):
 
 
 class FeDamping(_Section):
-    type: Literal["local", "mass"] = Field(description="'local' non-viscous (alpha in [0,1)) or 'mass'-proportional (alpha in 1/s)")
+    type: Literal["local", "mass"] = Field(
+        description="'local' non-viscous (alpha in [0,1)) or 'mass'-proportional (alpha in 1/s)")
     alpha: float = Field(ge=0, description="damping coefficient: local [-] or mass-proportional [1/s]")
 
 
 class FeSection(_Section):
-    mesh: str = Field(min_length=1, description="gmsh .geo source or .msh file, relative to the case file or a name in meshes/")
+    mesh: str = Field(
+        min_length=1,
+        description="gmsh .geo source or .msh file, relative to the case file or a name in meshes/")
     mesh_size: Optional[float] = Field(default=None, gt=0, description="target element size for a .geo source [m]")
-    geometry_parameters: dict[str, float] = Field(default_factory=dict, description="overrides of the .geo DefineConstant values [m]")
-    formulation: Literal["mixed", "displacement"] = Field(default="mixed", description="'mixed' u-p with OSS stabilisation, or pure-displacement P1")
-    alpha_tau: Optional[float] = Field(default=None, gt=0, description="stabilisation factor in tau_e = alpha_tau h_e^2/(2G) [-]; default: half the measured stability bound 0.6 G/K of the most incompressible material")
+    geometry_parameters: dict[str, float] = Field(
+        default_factory=dict,
+        description="overrides of the .geo DefineConstant values [m]")
+    formulation: Literal["mixed", "displacement"] = Field(
+        default="mixed",
+        description="'mixed' u-p with OSS stabilisation, or pure-displacement P1")
+    alpha_tau: Optional[float] = Field(
+        default=None, gt=0,
+        description="stabilisation factor in tau_e = alpha_tau h_e^2/(2G) [-]; default: "
+                    "half the measured stability bound 0.6 G/K of the most incompressible material")
     materials: list[FeMaterial] = Field(min_length=1, description="[[fe.materials]] tables")
-    boundary_conditions: list[FeBoundaryCondition] = Field(default_factory=list, description="[[fe.boundary_conditions]] tables")
+    boundary_conditions: list[FeBoundaryCondition] = Field(
+        default_factory=list,
+        description="[[fe.boundary_conditions]] tables")
     loads: list[FeLoad] = Field(default_factory=list, description="[[fe.loads]] tables")
     damping: Optional[FeDamping] = Field(default=None, description="[fe.damping] for quasi-static runs")
-    reactions: list[str] = Field(default_factory=list, description="facet groups whose reaction force is written to the series CSV")
+    reactions: list[str] = Field(
+        default_factory=list,
+        description="facet groups whose reaction force is written to the series CSV")
 
 
 class CouplingSection(_Section):
-    interface: list[str] = Field(min_length=1, description="facet physical groups of the FE mesh that the particles touch (a name or a list)")
+    interface: list[str] = Field(
+        min_length=1,
+        description="facet physical groups of the FE mesh that the particles touch (a name or a list)")
 
     @field_validator("interface", mode="before")
     @classmethod
     def _one_name_is_a_list(cls, value):
         return [value] if isinstance(value, str) else value
     material: str = Field(min_length=1, description="DEM material name of the interface facets")
-    subcycles: Optional[int] = Field(default=None, ge=1, description="DEM steps per FE step [-]; default the largest the FE stability allows")
+    subcycles: Optional[int] = Field(
+        default=None, ge=1,
+        description="DEM steps per FE step [-]; default the largest the FE stability allows")
 
 
 class Case(_Section):
@@ -256,7 +377,8 @@ def apply_overrides(path, raw, overrides):
             if nxt is None:
                 nxt = node.setdefault(part, {}) if isinstance(node, dict) else None
             if not isinstance(nxt, dict):
-                raise CaseError(path, key, text, "--set can only override keys of TOML tables (not of arrays of tables)")
+                raise CaseError(path, key, text,
+                                "--set can only override keys of TOML tables (not of arrays of tables)")
             node = nxt
         node[parts[-1]] = value
     return raw
@@ -331,9 +453,11 @@ def _check_consistency(path, case):
         _check_direct_shear(path, case)
         return
     if (t.duration is None) == (t.steps is None):
-        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps), "give exactly one of duration [s] or steps")
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
+                        "give exactly one of duration [s] or steps")
     if case.output.interval and t.duration and case.output.interval > t.duration:
-        raise CaseError(path, "output.interval", case.output.interval, f"must not exceed time.duration = {t.duration} s")
+        raise CaseError(path, "output.interval", case.output.interval,
+                        f"must not exceed time.duration = {t.duration} s")
     if case.case.kind == "dem":
         if case.dem is None:
             raise CaseError(path, "dem", None, "a case of kind 'dem' needs a [dem] section")
@@ -358,7 +482,8 @@ def _check_coupling(path, case):
     surfaces = sorted(n for n, d in physical_groups(mesh).items() if d == 2)
     for i, name in enumerate(case.coupling.interface):
         if name not in surfaces:
-            raise CaseError(path, f"coupling.interface[{i}]", name, f"not a surface physical group of {mesh.name}; available: {surfaces}")
+            raise CaseError(path, f"coupling.interface[{i}]", name,
+                            f"not a surface physical group of {mesh.name}; available: {surfaces}")
 
 
 def mesh_path(case_file, name):
@@ -374,7 +499,8 @@ def physical_groups(mesh_file):
     text = Path(mesh_file).read_text(errors="replace")
     if Path(mesh_file).suffix == ".geo":
         dims = {"Point": 0, "Curve": 1, "Line": 1, "Surface": 2, "Volume": 3}
-        return {m.group(2): dims[m.group(1)] for m in re.finditer(r'Physical\s+(Point|Curve|Line|Surface|Volume)\s*\(\s*"([^"]+)"', text)}
+        physical = r'Physical\s+(Point|Curve|Line|Surface|Volume)\s*\(\s*"([^"]+)"'
+        return {m.group(2): dims[m.group(1)] for m in re.finditer(physical, text)}
     block = re.search(r"\$PhysicalNames\s*\n\s*\d+\s*\n(.*?)\$EndPhysicalNames", text, re.S)
     if block is None:
         return {}
@@ -384,7 +510,8 @@ def physical_groups(mesh_file):
 def _check_fe(path, fe):
     mesh = mesh_path(path, fe.mesh)
     if not mesh.is_file():
-        raise CaseError(path, "fe.mesh", fe.mesh, f"mesh not found (looked for {resolve_path(path, fe.mesh)} and {mesh})")
+        raise CaseError(path, "fe.mesh", fe.mesh,
+                        f"mesh not found (looked for {resolve_path(path, fe.mesh)} and {mesh})")
     if mesh.suffix not in (".geo", ".msh"):
         raise CaseError(path, "fe.mesh", fe.mesh, "allowed formats: gmsh .geo source or .msh mesh")
     if mesh.suffix == ".geo" and fe.mesh_size is None:
@@ -399,18 +526,22 @@ def _check_fe(path, fe):
 
     whole = [i for i, m in enumerate(fe.materials) if m.group is None]
     if whole and len(fe.materials) > 1:
-        raise CaseError(path, f"fe.materials[{whole[0]}].group", None, "with several materials each needs its cell group")
+        raise CaseError(path, f"fe.materials[{whole[0]}].group", None,
+                        "with several materials each needs its cell group")
     for i, m in enumerate(fe.materials):
         if m.group is not None and m.group not in volumes:
-            raise CaseError(path, f"fe.materials[{i}].group", m.group, f"not a volume physical group of {mesh.name}; available: {volumes}")
+            raise CaseError(path, f"fe.materials[{i}].group", m.group,
+                            f"not a volume physical group of {mesh.name}; available: {volumes}")
     for i, bc in enumerate(fe.boundary_conditions):
         check_surface(f"fe.boundary_conditions[{i}].boundary", bc.boundary)
         if bc.type == "velocity" and bc.velocity is None:
-            raise CaseError(path, f"fe.boundary_conditions[{i}].velocity", None, "type = 'velocity' needs velocity = [vx, vy, vz] [m/s]")
+            raise CaseError(path, f"fe.boundary_conditions[{i}].velocity", None,
+                            "type = 'velocity' needs velocity = [vx, vy, vz] [m/s]")
     needs = {"traction": "traction", "pressure": "pressure", "body_force": "acceleration"}
     for i, load in enumerate(fe.loads):
         if getattr(load, needs[load.type]) is None:
-            raise CaseError(path, f"fe.loads[{i}].{needs[load.type]}", None, f"type = '{load.type}' needs {needs[load.type]}")
+            raise CaseError(path, f"fe.loads[{i}].{needs[load.type]}", None,
+                            f"type = '{load.type}' needs {needs[load.type]}")
         if load.type != "body_force":
             if load.boundary is None:
                 raise CaseError(path, f"fe.loads[{i}].boundary", None, f"type = '{load.type}' needs a boundary")
@@ -437,7 +568,8 @@ def _check_packing_file(path, key, value):
     if not f.is_file():
         raise CaseError(path, key, value, f"file not found (looked for {f})")
     if f.suffix not in (".npz", ".txt", ".dat", ".dump"):
-        raise CaseError(path, key, value, "allowed formats: .npz, .txt/.dat ('x y z r'), .dump (LIGGGHTS 'id radius x y z')")
+        raise CaseError(path, key, value,
+                        "allowed formats: .npz, .txt/.dat ('x y z r'), .dump (LIGGGHTS 'id radius x y z')")
 
 
 def _check_dem(path, dem):
@@ -457,12 +589,12 @@ def _check_dem(path, dem):
             if getattr(p, key) is None:
                 raise CaseError(path, f"dem.particles.{key}", None, "source = 'cloud' needs count, box and radius")
         lo, hi = p.box
-        if any(h <= l for l, h in zip(lo, hi)):
+        if any(high <= low for low, high in zip(lo, hi, strict=True)):
             raise CaseError(path, "dem.particles.box", p.box, "each max corner coordinate must exceed the min corner")
         rmin, rmax = p.radius
         if not 0 < rmin <= rmax:
             raise CaseError(path, "dem.particles.radius", p.radius, "need 0 < r_min <= r_max [m]")
-        if 2 * rmax >= min(h - l for l, h in zip(lo, hi)):
+        if 2 * rmax >= min(high - low for low, high in zip(lo, hi, strict=True)):
             raise CaseError(path, "dem.particles.radius", p.radius, "the largest diameter must be smaller than the box")
     for i, w in enumerate(dem.walls):
         key = f"dem.walls[{i}]"
@@ -487,15 +619,18 @@ def _check_direct_shear(path, case):
     t = case.time
     if t.duration is not None or t.steps is not None:
         raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
-                        "a direct_shear run lasts until direct_shear.shear_distance; give only time.dt or time.safety_factor")
+                        "a direct_shear run lasts until direct_shear.shear_distance; "
+                        "give only time.dt or time.safety_factor")
     for section in ("dem", "specimen", "direct_shear"):
         if getattr(case, section) is None:
             raise CaseError(path, section, None, f"a case of kind 'direct_shear' needs a [{section}] section")
     dem, sp, ds = case.dem, case.specimen, case.direct_shear
     if dem.particles is not None:
-        raise CaseError(path, "dem.particles", "present", "a direct_shear case builds its particles from [specimen]; remove [dem.particles]")
+        raise CaseError(path, "dem.particles", "present",
+                        "a direct_shear case builds its particles from [specimen]; remove [dem.particles]")
     if dem.walls:
-        raise CaseError(path, "dem.walls", len(dem.walls), "a direct_shear case builds the shear box itself; remove [[dem.walls]]")
+        raise CaseError(path, "dem.walls", len(dem.walls),
+                        "a direct_shear case builds the shear box itself; remove [[dem.walls]]")
     names = [m.name for m in dem.materials]
     for i, name in enumerate(names):
         if name in names[:i]:
@@ -504,20 +639,24 @@ def _check_direct_shear(path, case):
         if getattr(ds, key) not in names:
             raise CaseError(path, f"direct_shear.{key}", getattr(ds, key), f"must be one of the materials: {names}")
     if ds.shear_distance >= ds.box_length:
-        raise CaseError(path, "direct_shear.shear_distance", ds.shear_distance, f"must be smaller than box_length = {ds.box_length} m")
+        raise CaseError(path, "direct_shear.shear_distance", ds.shear_distance,
+                        f"must be smaller than box_length = {ds.box_length} m")
     if ds.ramp_distance >= ds.shear_distance:
-        raise CaseError(path, "direct_shear.ramp_distance", ds.ramp_distance, f"must be smaller than shear_distance = {ds.shear_distance} m")
+        raise CaseError(path, "direct_shear.ramp_distance", ds.ramp_distance,
+                        f"must be smaller than shear_distance = {ds.shear_distance} m")
     if sp.source == "file":
         _check_packing_file(path, "specimen.file", sp.file)
         return
     from de_domain.packing import SIEVE_PRESETS
     if (sp.sieve_diameters is None) != (sp.sieve_passing is None):
-        raise CaseError(path, "specimen.sieve_diameters / sieve_passing", (sp.sieve_diameters, sp.sieve_passing), "give both or neither")
+        raise CaseError(path, "specimen.sieve_diameters / sieve_passing", (sp.sieve_diameters, sp.sieve_passing),
+                        "give both or neither")
     if sp.sieve_diameters is None and sp.sieve not in SIEVE_PRESETS:
         raise CaseError(path, "specimen.sieve", sp.sieve, f"allowed presets: {sorted(SIEVE_PRESETS)}")
     try:
         from de_domain.deposition import specimen_curve
-        curve = specimen_curve(sp.sieve, sp.sieve_diameters, sp.sieve_passing, sp.scale, sp.truncate_below, sp.truncate_above)
+        curve = specimen_curve(sp.sieve, sp.sieve_diameters, sp.sieve_passing, sp.scale,
+                               sp.truncate_below, sp.truncate_above)
     except ValueError as exc:
         raise CaseError(path, "specimen", "sieve curve", str(exc)) from None
     d_max = curve.diameters[-1]

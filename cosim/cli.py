@@ -19,20 +19,25 @@ def _parser():
     p = argparse.ArgumentParser(prog="cosim", description="Coupled FE-DE simulator for granular geomechanics.")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    run = sub.add_parser("run", help="run a case file", description="Validate CASE, then run it; outputs go to runs/out/<case.name>/ unless --out is given.")
+    run = sub.add_parser("run", help="run a case file",
+                         description="Validate CASE, then run it; outputs go to runs/out/<case.name>/ "
+                                     "unless --out is given.")
     run.add_argument("case", metavar="CASE.toml", help="case file")
     run.add_argument("--out", metavar="DIR", help="output folder (default runs/out/<case.name>)")
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                      help="override one case value (TOML syntax for VALUE); repeatable")
     run.add_argument("--resume", action="store_true", help="continue from the checkpoint in the output folder")
 
-    check = sub.add_parser("check", help="validate a case file only (exit 0 or 2)", description="Validate CASE (types, ranges, consistency, referenced files) without running it.")
+    check = sub.add_parser("check", help="validate a case file only (exit 0 or 2)",
+                           description="Validate CASE (types, ranges, consistency, referenced files) "
+                                       "without running it.")
     check.add_argument("case", metavar="CASE.toml")
     check.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
 
     series = sub.add_parser("series", help="direct shear series: cases x normal stresses, Mohr-Coulomb fit",
-                            description="Run each direct_shear CASE (one specimen each, e.g. dense and loose) at every "
-                                        "normal stress and fit the Mohr-Coulomb envelope (phi, c) of peak and residual strength.")
+                            description="Run each direct_shear CASE (one specimen each, e.g. dense and loose) at "
+                                        "every normal stress and fit the Mohr-Coulomb envelope (phi, c) of peak "
+                                        "and residual strength.")
     series.add_argument("cases", metavar="CASE.toml", nargs="+", help="direct_shear case files")
     series.add_argument("--stresses", type=float, nargs="+", default=[50e3, 100e3, 200e3], metavar="PA",
                         help="normal stresses [Pa] (default 50e3 100e3 200e3)")
@@ -40,8 +45,12 @@ def _parser():
     series.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override one value in every case; repeatable")
 
-    sub.add_parser("info", help="versions of the stack, MPI size and Numba threads", description="Print versions of DOLFINx, Numba, mpi4py, petsc4py, gmsh, meshio, the MPI size and Numba threads.")
-    sub.add_parser("schema", help="list every case-file key with its type, unit and default", description="Print the case-file schema: every key with its type, unit, default and allowed values.")
+    sub.add_parser("info", help="versions of the stack, MPI size and Numba threads",
+                   description="Print versions of DOLFINx, Numba, mpi4py, petsc4py, gmsh, meshio, the MPI size "
+                               "and Numba threads.")
+    sub.add_parser("schema", help="list every case-file key with its type, unit and default",
+                   description="Print the case-file schema: every key with its type, unit, default and allowed "
+                               "values.")
     return p
 
 
@@ -97,7 +106,8 @@ def _schema():
             key = f"{prefix}{name}"
             if inner is not None:
                 is_list = "list" in str(field.annotation)
-                say(f"[{'[' if is_list else ''}{key}{']' if is_list else ''}]" + (f"  {field.description}" if field.description else ""))
+                header = f"[[{key}]]" if is_list else f"[{key}]"
+                say(header + (f"  {field.description}" if field.description else ""))
                 walk(inner, key + ".")
             else:
                 default = "required" if field.is_required() else f"default {field.default!r}"

@@ -39,7 +39,7 @@ class Interface:
             self.global_nodes = gathered[order]
             if len(np.unique(self.global_nodes)) != len(self.global_nodes):
                 raise RuntimeError(f"interface '{name}': a node is owned by two ranks")
-            self._from_gathered = order                                 # gathered row -> vertex: vertex k = row order[k]
+            self._from_gathered = order                     # gathered row -> vertex: vertex k = row order[k]
             tri = np.searchsorted(self.global_nodes, np.concatenate(all_triangles).reshape(-1, 3))
             if len(tri) == 0:
                 raise ValueError(f"interface '{name}' has no facets")

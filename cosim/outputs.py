@@ -38,7 +38,8 @@ def say(*args, **kwargs):
 def versions():
     """Versions of the stack a run depends on (``cosim info``)."""
     out = {"python": platform.python_version()}
-    for module in ("cosim", "numpy", "numba", "mpi4py", "petsc4py", "dolfinx", "basix", "ffcx", "ufl", "gmsh", "meshio", "pydantic"):
+    for module in ("cosim", "numpy", "numba", "mpi4py", "petsc4py", "dolfinx", "basix", "ffcx", "ufl", "gmsh",
+                   "meshio", "pydantic"):
         try:
             mod = __import__(module)
             out[module] = getattr(mod, "__version__", None) or _dist_version(module)
@@ -161,6 +162,7 @@ class PvdCollection:
     def add(self, t, files):
         for part, f in enumerate(files):
             self.entries.append((f"{t:.9e}", part, str(Path(f).relative_to(self.path.parent))))
-        body = "\n".join(f'    <DataSet timestep="{t}" group="" part="{part}" file="{f}"/>' for t, part, f in self.entries)
+        body = "\n".join(f'    <DataSet timestep="{t}" group="" part="{part}" file="{f}"/>'
+                         for t, part, f in self.entries)
         atomic_write_text(self.path, '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
                                      f"  <Collection>\n{body}\n  </Collection>\n</VTKFile>\n")

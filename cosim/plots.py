@@ -20,7 +20,7 @@ def plot_panels(csv_path, x, panels, png_path, title=""):
     """One panel per entry of ``panels`` = ``[(ylabel, [columns], log_y), ...]`` against column ``x``."""
     data = read_columns(csv_path)
     fig, axes = plt.subplots(len(panels), 1, figsize=(7, 2.6 * len(panels)), sharex=True, squeeze=False)
-    for ax, (ylabel, columns, log_y) in zip(axes[:, 0], panels):
+    for ax, (ylabel, columns, log_y) in zip(axes[:, 0], panels, strict=True):
         for c in columns:
             values = data[c]
             ax.plot(data[x], [abs(v) for v in values] if log_y else values, label=c)

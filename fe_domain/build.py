@@ -20,8 +20,18 @@ from __future__ import annotations
 
 from mpi4py import MPI
 
-from fe_domain.boundary import (BodyForce, Fixed, LocalNonViscousDamping, MassProportionalDamping,
-                                Material, NormalPressure, PrescribedVelocity, Traction, constant, ramp)
+from fe_domain.boundary import (
+    BodyForce,
+    Fixed,
+    LocalNonViscousDamping,
+    MassProportionalDamping,
+    Material,
+    NormalPressure,
+    PrescribedVelocity,
+    Traction,
+    constant,
+    ramp,
+)
 from fe_domain.explicit import DEFAULT_ALPHA_TAU, ExplicitSolid
 from fe_domain.mesh import load_mesh
 

@@ -64,10 +64,11 @@ from dolfinx.la import ScatterMode
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fe_domain import forms
-from fe_domain.boundary import (BodyForce, Fixed, Material, NormalPressure, PrescribedVelocity,
-                                Traction)
+from fe_domain import forms, jit
+from fe_domain.boundary import BodyForce, Fixed, Material, NormalPressure, PrescribedVelocity, Traction
 from fe_domain.mesh import TaggedMesh
+
+jit.install()   # DOLFINx's JIT: one short line on a cache miss, no compiler command lines
 
 #: Measured stability constant of step 3: stable while α_τ K/G ≤ STABILITY_CONSTANT.
 STABILITY_CONSTANT = 0.6

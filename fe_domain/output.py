@@ -12,7 +12,9 @@ from pathlib import Path
 from dolfinx import fem
 from dolfinx.io import XDMFFile
 
-from fe_domain import forms
+from fe_domain import forms, jit
+
+jit.install()   # fem.Expression below is JIT-compiled too (see fe_domain/jit.py)
 
 ENERGY_COLUMNS = ("time", "step", "kinetic", "strain", "external_work", "damping_work",
                   "stabilisation", "total")

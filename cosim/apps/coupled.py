@@ -90,8 +90,10 @@ def run(case, resolved, case_path, out_dir, resume=False):
         plot_panels(out_dir / "series.csv", "time", [
             ("interface force z [N]", ["interface_force_z"], False),
             ("mean interface u_z [m]", ["interface_displacement_z"], False),
-            ("FE + DEM + transit momentum [N s]\n(constant without gravity/walls)", ["momentum_total_x", "momentum_total_y", "momentum_total_z"], False),
-            ("unbalanced force ratio [-]", ["unbalanced_force_ratio"], True)], out_dir / "series.png", title=case.case.name)
+            ("FE + DEM + transit momentum [N s]\n(constant without gravity/walls)",
+             ["momentum_total_x", "momentum_total_y", "momentum_total_z"], False),
+            ("unbalanced force ratio [-]", ["unbalanced_force_ratio"], True)],
+            out_dir / "series.png", title=case.case.name)
         plot_panels(out_dir / "series.csv", "interface_displacement_z", [
             ("interface force z [N]", ["interface_force_z"], False)], out_dir / "load_settlement.png",
             title=f"{case.case.name}: load against mean interface displacement [m]")

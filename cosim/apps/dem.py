@@ -12,8 +12,16 @@ import numpy as np
 
 from cosim.case import resolve_path
 from cosim.errors import CaseError
-from cosim.outputs import (CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, save_engine_checkpoint, say,
-                           write_run_metadata)
+from cosim.outputs import (
+    CsvSeries,
+    ProgressLine,
+    PvdCollection,
+    is_root,
+    mpi_comm,
+    save_engine_checkpoint,
+    say,
+    write_run_metadata,
+)
 
 CHECKPOINT = "checkpoint.npz"
 PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint clock
@@ -47,7 +55,8 @@ def prepare(case, case_path):
             try:
                 facets[i] = FacetMesh.from_file(resolve_path(case_path, w.file), material=names.index(w.material))
             except Exception as exc:
-                raise CaseError(case_path, f"dem.walls[{i}].file", w.file, f"could not read the triangle mesh: {exc}") from None
+                raise CaseError(case_path, f"dem.walls[{i}].file", w.file,
+                                f"could not read the triangle mesh: {exc}") from None
     return {"positions": positions, "radii": radii, "facets": facets}
 
 
@@ -87,7 +96,8 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     checkpoint = out_dir / CHECKPOINT
     if resume:
         if not checkpoint.exists():
-            raise CaseError(case_path, "--resume", str(checkpoint), "no checkpoint in the output folder; run without --resume")
+            raise CaseError(case_path, "--resume", str(checkpoint),
+                            "no checkpoint in the output folder; run without --resume")
         engine = Engine.load_checkpoint(checkpoint)
     else:
         engine = build_engine(case, built)
@@ -140,5 +150,6 @@ def _run_root(case, resolved, case_path, out_dir, built, resume):
     e = engine.energy()
     scale = max(abs(e["dissipated"]) + abs(e["work"]), 1e-300)
     say(f"[{case.case.name}] done: t = {engine.time:.4e} s, kinetic energy {e['kinetic']:.3e} J, "
-        f"energy balance residual {e['residual']:.3e} J ({100 * abs(e['residual']) / scale:.2f} % of work + dissipation)")
+        f"energy balance residual {e['residual']:.3e} J "
+        f"({100 * abs(e['residual']) / scale:.2f} % of work + dissipation)")
 

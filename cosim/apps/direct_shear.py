@@ -46,8 +46,16 @@ import numpy as np
 
 from cosim.case import resolve_path
 from cosim.errors import CaseError
-from cosim.outputs import (CsvSeries, ProgressLine, atomic_write_text, is_root, mpi_comm, save_engine_checkpoint, say,
-                           write_run_metadata)
+from cosim.outputs import (
+    CsvSeries,
+    ProgressLine,
+    atomic_write_text,
+    is_root,
+    mpi_comm,
+    save_engine_checkpoint,
+    say,
+    write_run_metadata,
+)
 
 CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
@@ -465,8 +473,8 @@ def summary_text(s):
         f"(phi_res {s['residual_friction_angle_deg']:.1f} deg)",
         f"vertical displacement at the end {s['vertical_displacement_end'] * 1e3:+.3f} mm ({s['volume_change']}), "
         f"softening: {s['softening']}",
-        f"shear velocity {s['shear_velocity']:.3g} m/s, inertial number {s['inertial_number']:.2e}, dt {s['dt']:.3e} s, "
-        f"steps {s['steps_consolidation']} + {s['steps_shear']}",
+        f"shear velocity {s['shear_velocity']:.3g} m/s, inertial number {s['inertial_number']:.2e}, "
+        f"dt {s['dt']:.3e} s, steps {s['steps_consolidation']} + {s['steps_shear']}",
         f"servo |sigma - sigma_n|/sigma_n: max {servo if servo is not None else float('nan'):.4f} over the CSV rows; "
         f"Love-Weber/wall: normal {s['love_weber_normal_over_wall']:.3f}, shear {s['love_weber_shear_over_wall']:.3f}; "
         f"lower/upper shear force {s['shear_lower_over_upper']:.3f}",
@@ -479,8 +487,8 @@ def _frames(case, out_dir, loop, resume_time=None, count=10):
     the next frame's δ is kept in ``loop["next_frame"]`` (checkpointed)."""
     if not case.output.vtk:
         return lambda engine, delta: None
-    from de_domain.io import write_frame
     from cosim.outputs import PvdCollection
+    from de_domain.io import write_frame
     (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
     index = PvdCollection(Path(out_dir) / "particles.pvd", resume_time)
     spacing = case.direct_shear.shear_distance / count

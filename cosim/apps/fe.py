@@ -54,7 +54,8 @@ def run(case, resolved, case_path, out_dir, resume=False):
     out_dir = Path(out_dir)
     checkpoint = out_dir / f"checkpoint.rank{comm.rank}of{comm.size}.npz"
     if resume and not comm.allreduce(checkpoint.exists(), op=_mpi_land()):
-        raise CaseError(case_path, "--resume", str(checkpoint), f"no checkpoint for {comm.size} rank(s) in the output folder")
+        raise CaseError(case_path, "--resume", str(checkpoint),
+                        f"no checkpoint for {comm.size} rank(s) in the output folder")
     solver = build_solid(case, case_path)
     if case.time.dt is not None:
         solver.dt = case.time.dt

@@ -22,6 +22,7 @@ from cosim.outputs import atomic_write_text, say
 def _done(out_dir, resolved):
     """A run finished earlier with the same resolved case (an interrupted series resumes)."""
     import tomllib
+
     from cosim.outputs import _drop_none
     try:
         return (out_dir / "summary.json").exists() and \
@@ -72,18 +73,22 @@ def run_series(case_paths, stresses, out_root, overrides=()):
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    table = ["| specimen | strength | φ [°] | c [kPa] | R² | σ_n [kPa] | e generated |", "|---|---|---|---|---|---|---|"]
+    table = ["| specimen | strength | φ [°] | c [kPa] | R² | σ_n [kPa] | e generated |",
+             "|---|---|---|---|---|---|---|"]
     for r in rows:
         e = r["void_ratio_generated"]
         table.append(f"| {r['specimen']} | {r['strength']} | {r['phi_deg']:.1f} | {r['c_kPa']:.1f} | {r['R2']:.3f} | "
                      f"{r['stresses_kPa']} | {e if e is None else format(e, '.3f')} |")
-    runs_table = ["", "| run | e consolidated | peak τ/σ_n | φ_peak [°] | residual τ/σ_n | φ_res [°] | Δz end [mm] | I | wall clock [s] |",
+    runs_table = ["",
+                  "| run | e consolidated | peak τ/σ_n | φ_peak [°] | residual τ/σ_n | φ_res [°] | "
+                  "Δz end [mm] | I | wall clock [s] |",
                   "|---|---|---|---|---|---|---|---|---|"]
     for label, runs in results.items():
         for r in runs:
             runs_table.append(
                 f"| {label} {r['normal_stress'] / 1e3:g} kPa | {r['void_ratio_consolidated']:.3f} | "
-                f"{r['peak_stress_ratio']:.3f} | {r['peak_friction_angle_deg']:.1f} | {r['residual_stress_ratio']:.3f} | "
+                f"{r['peak_stress_ratio']:.3f} | {r['peak_friction_angle_deg']:.1f} | "
+                f"{r['residual_stress_ratio']:.3f} | "
                 f"{r['residual_friction_angle_deg']:.1f} | {r['vertical_displacement_end'] * 1e3:+.3f} | "
                 f"{r['inertial_number']:.1e} | {r['wall_clock_total_s']:.0f} |")
     wall = time.perf_counter() - t0

@@ -11,7 +11,6 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
-import pytest
 import tomli_w
 
 ROOT = Path(__file__).parents[2]

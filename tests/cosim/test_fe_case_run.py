@@ -61,7 +61,8 @@ def test_resume_matches_an_uninterrupted_run(tmp_path):
     cosim("run", str(case), "--out", str(tmp_path / "a"))
     cosim("run", str(case), "--out", str(tmp_path / "b"), "--set", "time.steps=150")
     cosim("run", str(case), "--out", str(tmp_path / "b"), "--resume")
-    with np.load(tmp_path / "a" / "checkpoint.rank0of1.npz") as a, np.load(tmp_path / "b" / "checkpoint.rank0of1.npz") as b:
+    with (np.load(tmp_path / "a" / "checkpoint.rank0of1.npz") as a,
+          np.load(tmp_path / "b" / "checkpoint.rank0of1.npz") as b):
         for key in a.files:
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     assert last_row(tmp_path / "a" / "series.csv") == last_row(tmp_path / "b" / "series.csv")

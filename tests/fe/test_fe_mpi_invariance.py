@@ -8,8 +8,16 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fe_domain.boundary import (BodyForce, Fixed, MassProportionalDamping, Material, NormalPressure,
-                                PrescribedVelocity, Traction, ramp)
+from fe_domain.boundary import (
+    BodyForce,
+    Fixed,
+    MassProportionalDamping,
+    Material,
+    NormalPressure,
+    PrescribedVelocity,
+    Traction,
+    ramp,
+)
 from fe_domain.explicit import ExplicitSolid
 from fe_domain.mesh import load_geo
 
@@ -50,11 +58,11 @@ def footing_history(comm):
 def test_displacement_history_is_the_same_on_all_ranks_and_on_one():
     parallel, parallel_energy = footing_history(MPI.COMM_WORLD)
     serial, serial_energy = footing_history(MPI.COMM_SELF)
-    for (u_n, p_n, r_n), (u_1, p_1, r_1) in zip(parallel, serial):
+    for (u_n, p_n, r_n), (u_1, p_1, r_1) in zip(parallel, serial, strict=True):
         assert np.abs(u_n - u_1).max() <= 1e-10 * np.abs(u_1).max()
         assert np.abs(p_n - p_1).max() <= 1e-10 * np.abs(p_1).max()
         assert np.abs(r_n - r_1).max() <= 1e-10 * np.abs(r_1).max()
-    for e_n, e_1 in zip(parallel_energy, serial_energy):
+    for e_n, e_1 in zip(parallel_energy, serial_energy, strict=True):
         assert e_n["total"] == pytest.approx(e_1["total"], rel=1e-10)
     assert np.abs(parallel[-1][0]).max() > 0
 

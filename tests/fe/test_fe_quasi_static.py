@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fe_domain.boundary import (Fixed, LocalNonViscousDamping, MassProportionalDamping, Material,
-                                Traction)
+from fe_domain.boundary import Fixed, LocalNonViscousDamping, MassProportionalDamping, Material, Traction
 from fe_domain.explicit import ExplicitSolid
 from fe_domain.mesh import load_geo
 

@@ -1,10 +1,10 @@
 """Sieve-curve sampling, random clouds and packing files (DESIGN.md §3)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from de_domain.packing import THESIS_SAND, SieveCurve, load_packing, random_cloud, save_packing
-
-from pathlib import Path
 
 W1 = Path(__file__).parents[3] / "shared" / "benchmarks" / "w1" / "bed_5000.dump"
 

@@ -8,7 +8,8 @@ from cosim.cli import main
 from cosim.errors import CaseError
 
 RUNS = Path(__file__).resolve().parents[2] / "runs"
-CASES = ["direct_shear_small.toml", "direct_shear_small_loose.toml", "direct_shear_dense.toml", "direct_shear_loose.toml"]
+CASES = ["direct_shear_small.toml", "direct_shear_small_loose.toml", "direct_shear_dense.toml",
+         "direct_shear_loose.toml"]
 
 
 @pytest.mark.parametrize("name", CASES)

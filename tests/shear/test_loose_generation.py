@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from de_domain import Material
-from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for, specimen_curve
+from de_domain.deposition import (
+    GenerationSettings,
+    diameters_for_solid_volume,
+    generate,
+    solid_volume_for,
+    specimen_curve,
+)
 
 L, H, E = 0.03, 0.0125, 0.84
 

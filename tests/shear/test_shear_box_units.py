@@ -2,8 +2,15 @@
 import numpy as np
 import pytest
 
-from cosim.lab.shear_box import (ShearBoxGeometry, corrected_area, inertial_number, mass_median_diameter,
-                                 rectangle, servo_velocity, velocity_for_inertial_number)
+from cosim.lab.shear_box import (
+    ShearBoxGeometry,
+    corrected_area,
+    inertial_number,
+    mass_median_diameter,
+    rectangle,
+    servo_velocity,
+    velocity_for_inertial_number,
+)
 
 
 def test_rectangle_is_two_triangles_covering_it():

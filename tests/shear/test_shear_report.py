@@ -9,7 +9,8 @@ from cosim.lab.shear_report import mohr_coulomb_fit, plot_run, plot_series, summ
 
 def _dense_like(n=200):
     delta = np.linspace(0, 9e-3, n)
-    ratio = 0.6 + 0.3 * np.exp(-((delta - 2e-3) / 1e-3) ** 2) * (delta < 2e-3) + 0.3 * np.exp(-(delta - 2e-3) / 2e-3) * (delta >= 2e-3)
+    ratio = (0.6 + 0.3 * np.exp(-((delta - 2e-3) / 1e-3) ** 2) * (delta < 2e-3)
+             + 0.3 * np.exp(-(delta - 2e-3) / 2e-3) * (delta >= 2e-3))
     sigma = np.full(n, 100e3)
     return delta, ratio * sigma, sigma, 1e-4 * delta / 9e-3
 
@@ -43,5 +44,6 @@ def test_plots_are_written(tmp_path):
     assert [p.name for p in paths] == ["shear_stress.png", "vertical_displacement.png", "void_ratio.png"]
     assert all(p.stat().st_size > 1000 for p in paths)
     rows = [{"normal_stress": s, "peak_shear_stress": 0.8 * s, "residual_shear_stress": 0.6 * s} for s in (50e3, 1e5)]
-    fits = {"dense": {"peak": mohr_coulomb_fit([50e3, 1e5], [40e3, 80e3]), "residual": mohr_coulomb_fit([50e3, 1e5], [30e3, 60e3])}}
+    fits = {"dense": {"peak": mohr_coulomb_fit([50e3, 1e5], [40e3, 80e3]),
+                      "residual": mohr_coulomb_fit([50e3, 1e5], [30e3, 60e3])}}
     assert plot_series({"dense": rows}, fits, tmp_path / "mc.png").stat().st_size > 1000

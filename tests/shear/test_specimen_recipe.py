@@ -2,8 +2,16 @@
 import numpy as np
 import pytest
 
-from de_domain.deposition import (diameters_for_solid_volume, layer_count, layer_tops, solid_volume_for,
-                                  specimen_curve, split_into_layers, truncated_above, void_ratio_of_box)
+from de_domain.deposition import (
+    diameters_for_solid_volume,
+    layer_count,
+    layer_tops,
+    solid_volume_for,
+    specimen_curve,
+    split_into_layers,
+    truncated_above,
+    void_ratio_of_box,
+)
 from de_domain.packing import THESIS_SAND
 
 
