@@ -1,4 +1,4 @@
-"""FE throughput: cell-steps per second of the explicit mixed u–p solid (DESIGN §4).
+"""FE throughput: cell-steps per second of the explicit mixed u–p solid (docs/design.md §4).
 
     .venv/bin/python benchmarks/fe_throughput.py            # ≈50k and ≈400k tets, 1 and 2 ranks
     .venv/bin/python benchmarks/fe_throughput.py --sizes 0.05 --ranks 1

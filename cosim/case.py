@@ -36,9 +36,9 @@ class CaseInfo(_Section):
     name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
     kind: Literal["dem", "direct_shear", "fe", "coupled"] = Field(
         description="what to run: 'dem' (a DEM simulation of particles and walls), "
-                    "'direct_shear' (specimen generation + the direct shear test, DESIGN §3), "
-                    "'fe' (the explicit mixed u-p solid on a gmsh mesh, DESIGN §4), "
-                    "'coupled' (FE solid and DEM particles through an interface, DESIGN §5)")
+                    "'direct_shear' (specimen generation + the direct shear test, docs/design.md §3), "
+                    "'fe' (the explicit mixed u-p solid on a gmsh mesh, docs/design.md §4), "
+                    "'coupled' (FE solid and DEM particles through an interface, docs/design.md §5)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -62,7 +62,7 @@ class OutputSection(_Section):
 class DemMaterial(_Section):
     name: str = Field(min_length=1, description="material name, referenced by particles and walls")
     density: float = Field(gt=0, description="solid density [kg/m^3]")
-    young: float = Field(gt=0, description="Young's modulus E; linear law k_n = 2 E r* (DESIGN §2) [Pa]")
+    young: float = Field(gt=0, description="Young's modulus E; linear law k_n = 2 E r* (docs/design.md §2.3) [Pa]")
     poisson: float = Field(default=0.25, ge=0, lt=0.5, description="Poisson's ratio (Hertz-Mindlin) [-]")
     friction: float = Field(default=0.5, ge=0, description="Coulomb friction coefficient mu [-]")
     restitution: float = Field(default=0.5, gt=0, le=1, description="normal restitution coefficient e [-]")
@@ -111,7 +111,7 @@ class DemSection(_Section):
     walls: list[DemWall] = Field(default_factory=list, description="[[dem.walls]] tables")
 
 
-# --------------------------------------------------------------------------- direct shear (DESIGN §3)
+# --------------------------------------------------------------------------- direct shear (docs/design.md §3)
 class SpecimenSection(_Section):
     source: Literal["generate", "file"] = Field(
         default="generate",

@@ -1,4 +1,4 @@
-"""The FE–DE interface (DESIGN.md §5): a tagged FE boundary seen by the DEM as a
+"""The FE–DE interface (docs/design.md §5.1): a tagged FE boundary seen by the DEM as a
 triangle facet mesh whose vertices are the FE nodes at X + u, and the particle
 impulse on those vertices handed back to the FE nodes as forces.
 
@@ -62,7 +62,7 @@ class Interface:
         return state[:, :3], state[:, 3:]
 
     def send_motion(self):
-        """DESIGN §5 step 2: after the FE step n → n+1 the vertices start at X + u^n and move
+        """docs/design.md §5.3 step 2: after the FE step n → n+1 the vertices start at X + u^n and move
         with v^{n+½} over the window (the DEM advances them linearly, x += v Δt)."""
         positions, velocities = self._gathered_state()
         if self.facets is not None:
@@ -70,7 +70,7 @@ class Interface:
             self.facets.reset_impulse()
 
     def receive_forces(self, window):
-        """DESIGN §5 step 4: interface force for the next FE step = impulse / Δt_FE, scattered
+        """docs/design.md §5.3 step 4: interface force for the next FE step = impulse / Δt_FE, scattered
         to the owning ranks; it is set on owned nodes only, so it is applied once."""
         chunks = None
         if self.comm.rank == 0:

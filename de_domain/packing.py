@@ -171,6 +171,8 @@ def load_packing(path):
     if atoms:
         cols = text[atoms[0]].split()[2:]
         table = np.loadtxt(text[atoms[0] + 1:], ndmin=2)
+        if "id" in cols:  # a multi-rank LIGGGHTS run writes the atoms in rank order
+            table = table[np.argsort(table[:, cols.index("id")], kind="stable")]
         idx = [cols.index(c) for c in ("x", "y", "z", "radius")]
         return table[:, idx[:3]].copy(), table[:, idx[3]].copy()
     table = np.loadtxt(path, ndmin=2, comments="#")

@@ -1,4 +1,4 @@
-"""Finite-element solid of the FE–DE co-simulation (DESIGN §4), on DOLFINx 0.5.
+"""Finite-element solid of the FE–DE co-simulation (docs/design.md §4), on DOLFINx 0.5.
 
     mesh.py      gmsh .geo/.msh → distributed mesh with tags addressed by physical-group name
     forms.py     UFL of the explicit mixed u–p formulation (one function per integral)

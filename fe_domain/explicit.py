@@ -1,4 +1,4 @@
-"""Explicit mixed displacement–pressure solid on DOLFINx (DESIGN §4, binding).
+"""Explicit mixed displacement–pressure solid on DOLFINx (docs/design.md §4).
 
 Unknowns (all P1, nodal): u, v (vector), p (mean stress, tension positive), π
 (projected pressure gradient, vector).  Lumped diagonal matrices M = ρ∫N,
@@ -330,7 +330,7 @@ class ExplicitSolid:
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> None:
-        """Advance one time step, DESIGN §4 steps 1–4 (step 4 at the start of the next step)."""
+        """Advance one time step, docs/design.md §4.4, steps 1–4 (step 4 at the start of the next step)."""
         dt = self.dt
         # Step 1 (and step 4 for p^n): f_int = K_dev u^n + Bᵀ p^n, π^n = −G̃⁻¹ P p^n.
         self._stiffness.mult(self.u.vector, self._f_int_petsc)

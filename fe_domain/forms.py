@@ -1,4 +1,4 @@
-"""UFL of the explicit mixed displacement–pressure formulation (DESIGN §4).
+"""UFL of the explicit mixed displacement–pressure formulation (docs/design.md §4.2).
 
 Notation: u, v displacement and velocity (P1 vector), p mean stress (P1 scalar,
 tension positive), π projected pressure gradient (P1 vector), τ the element
@@ -7,7 +7,7 @@ stabilisation parameter (DG0), G, K, ρ the shear modulus, bulk modulus and dens
 w, q, ψ are test functions, du, dp trial functions.
 
 The material is linear elastic and small-strain, so every per-step integral of
-DESIGN §4 is a constant linear operator of the state.  The bilinear forms here are
+docs/design.md §4.3 is a constant linear operator of the state.  The bilinear forms here are
 assembled once into sparse matrices (K_dev, Bᵀ, P, L; a step applies them and two
 transposes); the linear forms once into vectors (lumped matrices, loads) or at
 output intervals (energies).

@@ -3,7 +3,7 @@
 A geometry is a gmsh ``.geo`` source in ``meshes/`` (or an already meshed ``.msh``
 file).  Rank 0 of the communicator builds or reads the gmsh model, generates the
 3D tetrahedral mesh with the requested size, and ``dolfinx.io.gmshio.model_to_mesh``
-distributes it (DESIGN §1: meshes/*.geo → gmsh → dolfinx mesh + facet tags).
+distributes it (docs/design.md §1.2: meshes/*.geo → gmsh → dolfinx mesh + facet tags).
 Physical-group names are broadcast with the mesh so that case files can say
 ``facets("interface")`` and never use raw tag numbers.
 """

@@ -1,7 +1,7 @@
 """Case kind ``coupled``: an FE solid and DEM particles that touch through a tagged
-FE boundary (DESIGN.md §5), under ``mpirun -n N`` (FE on all ranks, DEM on rank 0).
+FE boundary (docs/design.md §5), under ``mpirun -n N`` (FE on all ranks, DEM on rank 0).
 
-Per FE step (the coupling schedule, DESIGN §5):
+Per FE step (the coupling schedule, docs/design.md §5.3):
   1. the FE advances v^{n+½}, u^{n+1} with the interface force of the last window;
   2. the interface vertices start at X + u^n and move with v^{n+½};
   3. the DEM runs ``subcycles`` steps against them, accumulating the impulse per FE node;
@@ -101,7 +101,7 @@ def run(case, resolved, case_path, out_dir, resume=False):
 
 
 def coupled_step(solid, engine, interface, subcycles):
-    """One FE step and its DEM window, DESIGN §5 steps 1–4."""
+    """One FE step and its DEM window, docs/design.md §5.3, steps 1–4."""
     solid.step()
     interface.send_motion()
     if engine is not None:

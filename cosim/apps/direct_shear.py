@@ -1,4 +1,4 @@
-"""Case kind ``direct_shear``: the direct shear test of the thesis, Ch. 4 (DESIGN.md §3).
+"""Case kind ``direct_shear``: the direct shear test of the thesis, Ch. 4 (docs/design.md §3).
 
 The run, top to bottom:
 

@@ -1,4 +1,4 @@
-"""Case kind ``fe``: the explicit mixed u–p solid (DESIGN.md §4) on a gmsh mesh,
+"""Case kind ``fe``: the explicit mixed u–p solid (docs/design.md §4) on a gmsh mesh,
 with boundary conditions and loads by physical-group name, under ``mpirun -n N``.
 
 Outputs: ``fields.xdmf`` (u, v, p, von Mises; ParaView), ``series.csv`` (reaction

@@ -1,6 +1,6 @@
 """``cosim series``: the same specimen(s) sheared at several normal stresses, and the
 Mohr–Coulomb envelope τ = c + σ_n tan φ fitted per specimen, for peak and residual
-strength (DESIGN.md §3).
+strength (docs/design.md §3.7).
 
 Each case file is one specimen (e.g. dense and loose); the specimen is generated once
 per case and reused at every stress, as identical specimens are in the laboratory.

@@ -1,4 +1,4 @@
-"""The split shear box of the direct shear test (DESIGN.md §3, thesis §4.2.2).
+"""The split shear box of the direct shear test (docs/design.md §3.4, thesis §4.2.2).
 
 Geometry (m), box side L, specimen height h, split plane z_s = h/2::
 
@@ -107,7 +107,7 @@ def servo_velocity(stress, target, area, stiffness, dt, gain, max_velocity):
 
 
 def plate_contact_stiffness(particles, radius, young_grain, young_plate):
-    """Σ k_n of the plate's contacts with ``particles`` (linear law, DESIGN §2:
+    """Σ k_n of the plate's contacts with ``particles`` (linear law, docs/design.md §2.3:
     per-body springs k = 4 E r in series, the wall a mirror sphere of radius r)."""
     r = radius[particles]
     k_i = 4.0 * young_grain * r
@@ -116,7 +116,7 @@ def plate_contact_stiffness(particles, radius, young_grain, young_plate):
 
 
 def inertial_number(shear_velocity, height, d50, density, normal_stress):
-    """I = γ̇ d50 √(ρ/σ_n) with the nominal shear rate γ̇ = v / h (DESIGN §3)."""
+    """I = γ̇ d50 √(ρ/σ_n) with the nominal shear rate γ̇ = v / h (docs/design.md §3.6)."""
     return shear_velocity / height * d50 * np.sqrt(density / normal_stress)
 
 

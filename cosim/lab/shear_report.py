@@ -1,5 +1,5 @@
 """Direct shear results: the run summary, the standard plots and the Mohr–Coulomb fit
-(DESIGN.md §3). Pure post-processing of the CSV columns; no engine here."""
+(docs/design.md §3.6–§3.7). Pure post-processing of the CSV columns; no engine here."""
 from __future__ import annotations
 
 import csv

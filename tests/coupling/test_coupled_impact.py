@@ -1,4 +1,4 @@
-"""FE–DE coupling (DESIGN.md §5): grains fly up into a free elastic plate.
+"""FE–DE coupling (docs/design.md §5.4): grains fly up into a free elastic plate.
 
 With no gravity, walls or supports the only forces are the contacts between grains
 and the plate's interface facets, so the linear momentum of FE + DEM + the impulse

@@ -1,4 +1,4 @@
-"""Conservation laws and the energy balance (DESIGN.md §2 diagnostics)."""
+"""Conservation laws and the energy balance (docs/design.md §2.15)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Two-body contact laws against closed forms (DESIGN.md §2)."""
+"""Two-body contact laws against closed forms (docs/design.md §2.3–§2.7)."""
 import math
 
 import numpy as np

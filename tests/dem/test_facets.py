@@ -1,5 +1,5 @@
 """Sphere–facet contacts: one contact at a shared edge/vertex, rest force = weight,
-barycentric vertex forces and impulses (DESIGN.md §2 "Walls", §5)."""
+barycentric vertex forces and impulses (docs/design.md §2.10, §5.1)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""A sphere on an incline (DESIGN.md §2 friction + rotation): rolling without slip,
+"""A sphere on an incline (docs/design.md §2.6 friction + §2.1 rotation): rolling without slip,
 a = 5/7 g sin θ, when tan θ < 7/2 μ; sliding, a = g (sin θ − μ cos θ), otherwise.
 
 The plane is z = 0 and gravity is tilted by θ, which is the same mechanics.

@@ -27,7 +27,7 @@ def test_interface_triangles_tile_the_footing_underside():
 
 
 def test_external_force_impulse_becomes_momentum_of_a_free_body():
-    """No supports: internal forces cancel, so Σ M v = Σ F Δt per step (DESIGN §5 momentum)."""
+    """No supports: internal forces cancel, so Σ M v = Σ F Δt per step (docs/design.md §5.4)."""
     solver = ExplicitSolid(load_geo("footing", 0.3, MPI.COMM_SELF), MATERIALS)
     nodes = solver.boundary_nodes("interface")
     force = np.array([10.0, -20.0, 300.0])

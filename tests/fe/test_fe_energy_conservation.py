@@ -1,4 +1,4 @@
-"""Undamped central-difference runs conserve the total energy (DESIGN §4)."""
+"""Undamped central-difference runs conserve the total energy (docs/design.md §4.8)."""
 
 import numpy as np
 import pytest

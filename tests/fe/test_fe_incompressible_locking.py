@@ -1,5 +1,5 @@
 """Nearly incompressible block (ν = 0.4999): the stabilised mixed u–p P1 element of
-DESIGN §4 matches a converged reference, the pure-displacement P1 element locks."""
+docs/design.md §4 matches a converged reference, the pure-displacement P1 element locks."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Results do not depend on the number of ranks (DESIGN §4 ghost updates, §5 MPI).
+"""Results do not depend on the number of ranks (docs/design.md §4.8 ghost updates, §5.5 MPI).
 
 Collective: run under ``mpirun -n 2 python -m pytest -m mpi``.  Every rank also runs
 the same case on COMM_SELF and compares node by node (gmsh node numbers).

@@ -1,4 +1,4 @@
-"""The step's assembled operators reproduce DESIGN §4's integrals (as vector assemblies) to round-off.
+"""The step's assembled operators reproduce the integrals of docs/design.md §4.2 (as vector assemblies) to round-off.
 
 The solver applies K_dev, Bᵀ, P, L (and the transposes of Bᵀ and P) assembled once;
 here each product is compared with a DOLFINx vector assembly of the integral it

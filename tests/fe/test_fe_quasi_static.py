@@ -1,4 +1,4 @@
-"""Damped explicit runs converge to the static solution (DESIGN §4 damping)."""
+"""Damped explicit runs converge to the static solution (docs/design.md §4.7 damping)."""
 
 import numpy as np
 import pytest

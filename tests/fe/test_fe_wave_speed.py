@@ -1,4 +1,4 @@
-"""P-wave front in a laterally confined bar arrives at L/c_p (DESIGN §4: Δt from h_min, c_p)."""
+"""P-wave front in a laterally confined bar arrives at L/c_p (docs/design.md §4.6: Δt from h_min, c_p)."""
 
 import numpy as np
 import pytest

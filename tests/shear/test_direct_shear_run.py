@@ -1,4 +1,4 @@
-"""The direct shear test end to end on a miniature specimen (DESIGN.md §3).
+"""The direct shear test end to end on a miniature specimen (docs/design.md §3.6).
 
 A 20 × 20 × 10 mm box of ~600 grains (d = 1.6–2.4 mm) keeps the default runs short:
 generation hits its target void ratio, the servo holds σ_n within ±2 %, wall stresses

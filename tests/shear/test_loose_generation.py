@@ -1,4 +1,4 @@
-"""Loose targets of the thesis sand (DESIGN.md §3): rolling resistance during deposition
+"""Loose targets of the thesis sand (docs/design.md §3.2): rolling resistance during deposition
 and the hold friction keep a deposit at e = 0.84, which plain frictional spheres miss.
 
 A 30 × 30 × 12.5 mm box of the thesis sand (1.18–5 mm, ~1,800 grains, one layer): with

@@ -1,4 +1,4 @@
-"""Radius expansion, the alternative generation method (DESIGN.md §3)."""
+"""Radius expansion, the alternative generation method (docs/design.md §3.2)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Specimen recipe without the engine: sieve curve, grain volume, layers (DESIGN.md §3)."""
+"""Specimen recipe without the engine: sieve curve, grain volume, layers (docs/design.md §3.1–§3.3)."""
 import numpy as np
 import pytest
 
