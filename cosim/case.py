@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import re
+import sys
 import tomllib
 from pathlib import Path
 from typing import Annotated, Literal, Optional
@@ -28,12 +29,16 @@ Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+    # strict: TOML has types, so "yes" is not a bool and "3" not a number; no NaN or inf
+    # anywhere (a float key accepts an integer, as TOML users write 1 for 1.0)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, strict=True, allow_inf_nan=False)
 
 
 # --------------------------------------------------------------------------- case
 class CaseInfo(_Section):
-    name: str = Field(min_length=1, description="case name; outputs go to runs/out/<name>/")
+    name: str = Field(
+        pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$",
+        description="case name: letters, digits, '.', '_', '-' (at most 100, no path); outputs go to runs/out/<name>/")
     kind: Literal["dem", "direct_shear", "fe", "coupled"] = Field(
         description="what to run: 'dem' (a DEM simulation of particles and walls), "
                     "'direct_shear' (specimen generation + the direct shear test, docs/design.md §3), "
@@ -65,7 +70,9 @@ class DemMaterial(_Section):
     young: float = Field(gt=0, description="Young's modulus E; linear law k_n = 2 E r* (docs/design.md §2.3) [Pa]")
     poisson: float = Field(default=0.25, ge=0, lt=0.5, description="Poisson's ratio (Hertz-Mindlin) [-]")
     friction: float = Field(default=0.5, ge=0, description="Coulomb friction coefficient mu [-]")
-    restitution: float = Field(default=0.5, gt=0, le=1, description="normal restitution coefficient e [-]")
+    restitution: float = Field(
+        default=0.5, gt=0, le=1,
+        description="normal restitution coefficient e [-]; 1 turns the normal dashpot off (elastic impacts)")
     stiffness_ratio: float = Field(default=1.5, gt=0, description="kappa = k_n / k_t [-]")
     rolling_stiffness: float = Field(default=0.0, ge=0, description="beta_r: k_r = beta_r k_t rbar^2 [-]")
     rolling_friction: float = Field(default=0.0, ge=0, description="eta_r: |M_r| <= eta_r f_n rbar [-]")
@@ -347,10 +354,14 @@ def load_case(path, overrides=()):
     if not path.is_file():
         raise CaseError(path, "<file>", str(path), "the case file must exist and be a readable TOML file")
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise CaseError(path, "<encoding>", f"byte {exc.object[exc.start:exc.start + 1]!r} at offset {exc.start}",
+                        "a case file must be UTF-8 text (TOML)") from None
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(path, "<syntax>", str(exc), "the file must be valid TOML") from None
     raw = apply_overrides(path, raw, overrides)
+    _check_sections(path, raw)
     try:
         case = Case.model_validate(raw)
     except ValidationError as exc:
@@ -370,18 +381,41 @@ def apply_overrides(path, raw, overrides):
             value = tomllib.loads(f"v = {text}")["v"]
         except tomllib.TOMLDecodeError:
             value = text
+        parts = _override_path(path, key.strip(), text)
         node = raw
-        parts = key.strip().split(".")
-        for part in parts[:-1]:
-            nxt = node.get(part) if isinstance(node, dict) else None
+        for depth, part in enumerate(parts[:-1]):
+            if isinstance(part, int):
+                if not isinstance(node, list) or part >= len(node):
+                    where = _dotted(parts[:depth])
+                    count = len(node) if isinstance(node, list) else 0
+                    raise CaseError(path, key, text, f"'{where}' has {count} entries in the case file; "
+                                                     f"index {part} is not one of them")
+                node = node[part]
+                continue
+            nxt = node.get(part)
             if nxt is None:
-                nxt = node.setdefault(part, {}) if isinstance(node, dict) else None
-            if not isinstance(nxt, dict):
-                raise CaseError(path, key, text,
-                                "--set can only override keys of TOML tables (not of arrays of tables)")
+                nxt = node.setdefault(part, [] if isinstance(parts[depth + 1], int) else {})
+            if not isinstance(nxt, (dict, list)):
+                raise CaseError(path, key, text, f"'{_dotted(parts[:depth + 1])}' is a value, not a table")
             node = nxt
+        if not isinstance(node, dict):
+            raise CaseError(path, key, text, "--set names a key of a table: section.key or section.list[i].key")
         node[parts[-1]] = value
     return raw
+
+
+def _override_path(path, key, text):
+    """``dem.materials[0].friction`` → ["dem", "materials", 0, "friction"]."""
+    parts = []
+    for piece in key.split("."):
+        match = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)", piece)
+        if match is None:
+            raise CaseError(path, key, text, "--set needs section.key=value (a list entry: section.list[i].key=value)")
+        parts.append(match.group(1))
+        parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", match.group(2)))
+    if isinstance(parts[-1], int):
+        raise CaseError(path, key, text, "--set replaces one key, not a whole list entry")
+    return parts
 
 
 def _dotted(loc):
@@ -440,15 +474,94 @@ def _inner_model(annotation):
     return None
 
 
+def warn(file, key, value, text):
+    """A legal but suspicious value: one line on rank 0, the run goes on."""
+    from cosim.outputs import say
+    say(f"cosim: warning: {file}: key '{key}' = {value!r}: {text}", file=sys.stderr)
+
+
 def resolve_path(case_file, relative):
     """A path in a case file, relative to the case file's folder."""
     p = Path(relative)
     return p if p.is_absolute() else (Path(case_file).parent / p).resolve()
 
 
+SECTIONS_OF_KIND = {
+    "dem": ("case", "time", "output", "dem"),
+    "direct_shear": ("case", "time", "output", "dem", "specimen", "direct_shear"),
+    "fe": ("case", "time", "output", "fe"),
+    "coupled": ("case", "time", "output", "dem", "fe", "coupling"),
+}
+
+# keys a kind (or a choice inside a table) does not use: (table, keys, when, why).
+# Given anyway, they are refused, never silently ignored.
+_UNUSED = [
+    ("time", ("dt",), lambda c, s: c.case.kind == "coupled",
+     "a coupled run takes dt_FE = subcycles x dt_DEM within both stability limits; "
+     "set time.safety_factor and coupling.subcycles instead"),
+    ("output", ("interval",), lambda c, s: c.case.kind == "direct_shear",
+     "a direct_shear run writes direct_shear.rows CSV rows over the shear distance; set rows instead"),
+    ("output", ("vtk",), lambda c, s: c.case.kind == "fe",
+     "an fe run always writes its fields as XDMF; vtk is for particles"),
+    ("output", ("checkpoint_interval",), lambda c, s: c.case.kind == "coupled",
+     "coupled runs write no checkpoints yet"),
+    ("dem.particles", ("file",), lambda c, s: s.source == "cloud", "source = 'cloud' reads no file"),
+    ("dem.particles", ("count", "box", "radius"), lambda c, s: s.source == "file",
+     "source = 'file' takes the spheres from the file"),
+    ("dem.walls[]", ("file",), lambda c, s: s.type == "plane", "a plane wall has no mesh file"),
+    ("dem.walls[]", ("point", "normal"), lambda c, s: s.type == "facets", "a facets wall is given by its mesh file"),
+    ("specimen", ("file",), lambda c, s: s.source == "generate", "source = 'generate' reads no file"),
+    ("specimen", tuple(n for n in SpecimenSection.model_fields if n not in ("source", "file")),
+     lambda c, s: s.source == "file", "source = 'file' takes the specimen as it is from the file"),
+    ("direct_shear", ("sample_height",), lambda c, s: c.specimen is not None and c.specimen.source == "file",
+     "with specimen.source = 'file' the height is the packing's (the stored plate height of a .npz "
+     "written by this app, else the top of the highest grain)"),
+    ("fe", ("mesh_size", "geometry_parameters"), lambda c, s: s.mesh.endswith(".msh"),
+     "a .msh file is already meshed"),
+    ("fe.boundary_conditions[]", ("velocity", "ramp"), lambda c, s: s.type == "fixed",
+     "a fixed boundary has no velocity"),
+    ("fe.loads[]", ("traction", "acceleration"), lambda c, s: s.type == "pressure", "type = 'pressure' reads pressure"),
+    ("fe.loads[]", ("pressure", "acceleration"), lambda c, s: s.type == "traction", "type = 'traction' reads traction"),
+    ("fe.loads[]", ("boundary", "traction", "pressure"), lambda c, s: s.type == "body_force",
+     "type = 'body_force' acts on the whole body with its acceleration"),
+]
+
+
+def _tables(case, table):
+    """(dotted key, model) of every table at ``table`` ("a.b", or "a.b[]" for each entry of a list)."""
+    name, is_list = table.removesuffix("[]"), table.endswith("[]")
+    node = case
+    for part in name.split("."):
+        node = getattr(node, part, None) if node is not None else None
+    if node is None:
+        return []
+    return [(f"{name}[{i}]", entry) for i, entry in enumerate(node)] if is_list else [(name, node)]
+
+
+def _check_sections(path, raw):
+    """Refuse a section the case's kind does not use (before the sections' own checks)."""
+    kind = raw.get("case", {}).get("kind") if isinstance(raw.get("case"), dict) else None
+    if kind not in SECTIONS_OF_KIND:
+        return  # the schema names the bad or missing kind
+    for section in raw:
+        if section not in SECTIONS_OF_KIND[kind] and section in Case.model_fields:
+            raise CaseError(path, section, f"[{section}]", f"a case of kind '{kind}' does not use [{section}]; "
+                                                           f"its sections: {', '.join(SECTIONS_OF_KIND[kind])}")
+
+
+def _check_used(path, case):
+    """Refuse keys the case's kind, or a choice in their table, does not use."""
+    for table, keys, when, why in _UNUSED:
+        for dotted, model in _tables(case, table):
+            given = [k for k in keys if k in model.model_fields_set]
+            if given and when(case, model):
+                raise CaseError(path, f"{dotted}.{given[0]}", getattr(model, given[0]), f"not used here: {why}")
+
+
 def _check_consistency(path, case):
     """Cross-field rules pydantic's per-field ranges cannot express."""
     t = case.time
+    _check_used(path, case)
     if case.case.kind == "direct_shear":
         _check_direct_shear(path, case)
         return
@@ -507,6 +620,11 @@ def physical_groups(mesh_file):
     return {m.group(3): int(m.group(1)) for m in re.finditer(r'(\d+)\s+(\d+)\s+"([^"]+)"', block.group(1))}
 
 
+def geometry_parameters(geo_file):
+    """Names of the ``DefineConstant`` parameters (ONELAB ``Parameters/<name>``) of a .geo source."""
+    return set(re.findall(r'Name\s+"Parameters/([^"]+)"', Path(geo_file).read_text(errors="replace")))
+
+
 def _check_fe(path, fe):
     mesh = mesh_path(path, fe.mesh)
     if not mesh.is_file():
@@ -516,7 +634,19 @@ def _check_fe(path, fe):
         raise CaseError(path, "fe.mesh", fe.mesh, "allowed formats: gmsh .geo source or .msh mesh")
     if mesh.suffix == ".geo" and fe.mesh_size is None:
         raise CaseError(path, "fe.mesh_size", None, "a .geo source needs a mesh size > 0 [m]")
+    if mesh.suffix == ".geo":
+        known = geometry_parameters(mesh)
+        for name in fe.geometry_parameters:
+            if name not in known:
+                raise CaseError(path, f"fe.geometry_parameters.{name}", fe.geometry_parameters[name],
+                                f"{mesh.name} defines no such parameter; its parameters: {sorted(known)}")
+    if mesh.suffix == ".msh" and not Path(mesh).read_bytes()[:200].lstrip().startswith(b"$MeshFormat"):
+        raise CaseError(path, "fe.mesh", fe.mesh, f"{mesh.name} is not a gmsh .msh file (no $MeshFormat header)")
     groups = physical_groups(mesh)
+    if not groups:
+        raise CaseError(path, "fe.mesh", fe.mesh,
+                        f"{mesh.name} names no physical groups; the case addresses materials, boundaries and loads "
+                        "by group name (Physical Volume/Surface(\"name\") in gmsh)")
     surfaces = sorted(n for n, d in groups.items() if d == 2)
     volumes = sorted(n for n, d in groups.items() if d == 3)
 
@@ -647,6 +777,14 @@ def _check_direct_shear(path, case):
     if sp.source == "file":
         _check_packing_file(path, "specimen.file", sp.file)
         return
+    if ds.sample_height >= ds.box_length:
+        raise CaseError(path, "direct_shear.sample_height", ds.sample_height,
+                        f"must be smaller than box_length = {ds.box_length} m (ASTM D3080 asks for a box at least "
+                        "twice as wide as the specimen is high)")
+    if 2 * ds.sample_height > ds.box_length:
+        warn(path, "direct_shear.sample_height", ds.sample_height,
+             f"the box is less than twice as wide as the specimen is high (ASTM D3080: box_length >= 2 h = "
+             f"{2 * ds.sample_height} m); the side walls will carry much of the load")
     from de_domain.packing import SIEVE_PRESETS
     if (sp.sieve_diameters is None) != (sp.sieve_passing is None):
         raise CaseError(path, "specimen.sieve_diameters / sieve_passing", (sp.sieve_diameters, sp.sieve_passing),

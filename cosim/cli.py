@@ -1,16 +1,20 @@
 """The ``cosim`` command line: ``run``, ``check``, ``series``, ``info``, ``schema``.
 
 Exit codes: 0 success, 2 bad input (case file, key, value named), 1 runtime failure.
-Under ``mpirun -n N`` every rank runs, only rank 0 prints.
+Under ``mpirun -n N`` every rank runs, only rank 0 prints. Validation runs on every
+rank and the ranks agree on its outcome (all exit 2, one message); a failure during the
+run on any rank ends all ranks (``MPI_Abort``) with the cause printed once.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import sys
+import traceback
 from pathlib import Path
 
-from cosim.errors import EXIT_BAD_INPUT, CaseError
+from cosim.errors import EXIT_BAD_INPUT, EXIT_RUN_FAILED, CaseError, RunFailed
 
 DEFAULT_OUT_ROOT = Path("runs/out")
 
@@ -29,10 +33,12 @@ def _parser():
     run.add_argument("--resume", action="store_true", help="continue from the checkpoint in the output folder")
 
     check = sub.add_parser("check", help="validate a case file only (exit 0 or 2)",
-                           description="Validate CASE (types, ranges, consistency, referenced files) "
+                           description="Validate CASE exactly as `cosim run` does (types, ranges, "
+                                       "consistency, packings, meshes, time steps, the output folder) "
                                        "without running it.")
     check.add_argument("case", metavar="CASE.toml")
     check.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
+    check.add_argument("--out", metavar="DIR", help="output folder the run would use (checked, not created)")
 
     series = sub.add_parser("series", help="direct shear series: cases x normal stresses, Mohr-Coulomb fit",
                             description="Run each direct_shear CASE (one specimen each, e.g. dense and loose) at "
@@ -56,35 +62,112 @@ def _parser():
 
 def main(argv=None):
     args = _parser().parse_args(argv)
-    from cosim.outputs import say
+    from cosim.outputs import mpi_comm, say
+    comm = mpi_comm()
     try:
         if args.command == "info":
             return _info()
         if args.command == "schema":
             return _schema()
         if args.command == "series":
-            from cosim.lab.series import run_series
-            for stress in args.stresses:
-                if not stress > 0:
-                    raise CaseError("<command line>", "--stresses", stress, "normal stresses must be > 0 Pa")
-            run_series(args.cases, args.stresses, Path(args.out), args.overrides)
-            say(f"outputs: {Path(args.out).resolve()}")
-            return 0
-        from cosim.case import load_case
-        case, resolved = load_case(args.case, args.overrides)
+            jobs = _guarded(comm, lambda: _agreed(comm, lambda: _series_jobs(args)), passes=CaseError)
+            return _guarded(comm, lambda: _series(jobs, Path(args.out)))
+        app, prepared = _guarded(comm, lambda: _agreed(comm, lambda: _prepare(args)), passes=CaseError)
         if args.command == "check":
-            say(f"{args.case}: OK (kind '{case.case.kind}', name '{case.case.name}')")
+            say(f"{args.case}: OK (kind '{prepared.case.case.kind}', name '{prepared.case.case.name}'; "
+                f"outputs would go to {prepared.out_dir})")
             return 0
-        out_dir = Path(args.out) if args.out else DEFAULT_OUT_ROOT / case.case.name
-        app = importlib.import_module(f"cosim.apps.{case.case.kind}")
-        app.prepare(case, args.case)  # everything that can fail on input, before any computation
-        out_dir.mkdir(parents=True, exist_ok=True)
-        app.run(case, resolved, args.case, out_dir, resume=args.resume)
-        say(f"outputs: {out_dir.resolve()}")
-        return 0
+        return _guarded(comm, lambda: _run(app, prepared))
     except CaseError as exc:
         say(f"cosim: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except (RunFailed, FloatingPointError) as exc:  # a diverged state (every rank alike, or one process)
+        say(f"cosim: run failed: {exc}", file=sys.stderr)
+        return EXIT_RUN_FAILED
+
+
+def _prepare(args):
+    """The whole validation ``cosim run`` does before computing: the case file, the output
+    folder, then the kind's own inputs (packings, meshes, time steps, checkpoint)."""
+    from cosim.apps import Prepared
+    from cosim.case import load_case
+    from cosim.outputs import check_output_folder
+    case, resolved = load_case(args.case, args.overrides)
+    out_dir = Path(args.out) if args.out else DEFAULT_OUT_ROOT / case.case.name
+    check_output_folder(out_dir)
+    app = importlib.import_module(f"cosim.apps.{case.case.kind}")
+    resume = getattr(args, "resume", False)
+    built = app.prepare(case, args.case, out_dir, resume)
+    return app, Prepared(case, resolved, Path(args.case), out_dir, resume, built)
+
+
+def _run(app, prepared):
+    from cosim.outputs import is_root, mpi_comm, say
+    if is_root():
+        prepared.out_dir.mkdir(parents=True, exist_ok=True)
+    mpi_comm().Barrier()
+    app.run(prepared)
+    say(f"outputs: {prepared.out_dir.resolve()}")
+    return 0
+
+
+def _series_jobs(args):
+    from cosim.lab.series import validate_series
+    for stress in args.stresses:
+        if not (math.isfinite(stress) and stress > 0):
+            raise CaseError("<command line>", "--stresses", stress, "normal stresses must be finite and > 0 Pa")
+    return validate_series(args.cases, args.stresses, Path(args.out), args.overrides)
+
+
+def _series(jobs, out_root):
+    from cosim.lab.series import run_series
+    from cosim.outputs import say
+    run_series(jobs, out_root)
+    say(f"outputs: {out_root.resolve()}")
+    return 0
+
+
+def _agreed(comm, validate):
+    """Run ``validate`` on every rank; if it raises CaseError on any rank, raise the first
+    failing rank's error on all of them, so every rank exits 2 with one message."""
+    try:
+        result, error = validate(), None
+    except CaseError as exc:
+        result, error = None, exc
+    if comm.size > 1:
+        errors = comm.allgather(None if error is None else (error.file, error.key, error.value, error.allowed))
+        first = next((e for e in errors if e is not None), None)
+        if first is not None:
+            raise CaseError(*first)
+    elif error is not None:
+        raise error
+    return result
+
+
+def _guarded(comm, work, passes=RunFailed):
+    """Run ``work``; under ``mpirun -n N`` (N > 1) an exception on one rank that the others
+    do not share (anything but ``passes``, which every rank raises alike) is printed by
+    that rank, then MPI_Abort ends every rank: none is left waiting in a collective the
+    failed rank will never reach."""
+    try:
+        return work()
+    except passes:
+        raise
+    except Exception as exc:
+        if comm.size == 1:
+            raise
+        if isinstance(exc, CaseError):
+            sys.stderr.write(f"cosim: error (rank {comm.rank}): {exc}\n")
+            code = EXIT_BAD_INPUT
+        elif isinstance(exc, FloatingPointError):  # a diverged state, found on this rank
+            sys.stderr.write(f"cosim: run failed on rank {comm.rank} of {comm.size}: {exc}\n")
+            code = EXIT_RUN_FAILED
+        else:
+            sys.stderr.write(f"cosim: rank {comm.rank} of {comm.size} failed:\n{traceback.format_exc()}")
+            code = EXIT_RUN_FAILED
+        sys.stderr.write(f"cosim: ending all {comm.size} ranks (MPI_Abort)\n")
+        sys.stderr.flush()
+        comm.Abort(code)
 
 
 def _info():

@@ -13,6 +13,7 @@ import os
 import platform
 import re
 import sys
+import tempfile
 import time
 from datetime import datetime, timezone
 from pathlib import Path
@@ -36,7 +37,10 @@ def say(*args, **kwargs):
 
 
 def versions():
-    """Versions of the stack a run depends on (``cosim info``)."""
+    """Versions of the stack a run depends on (``cosim info``).
+
+    Collective under MPI: importing petsc4py/dolfinx initialises PETSc, which is a
+    collective call, so every rank must call this (see :func:`write_run_metadata`)."""
     out = {"python": platform.python_version()}
     for module in ("cosim", "numpy", "numba", "mpi4py", "petsc4py", "dolfinx", "basix", "ffcx", "ufl", "gmsh",
                    "meshio", "pydantic"):
@@ -54,10 +58,13 @@ def _dist_version(name):
 
 
 def runtime():
-    """MPI size and Numba threads of this process."""
+    """MPI size, Numba threads and the libgomp wait policy chosen for this process."""
     import numba
+
+    from de_domain import threading
     return {"mpi_size": mpi_comm().size, "numba_threads": numba.get_num_threads(),
-            "numba_threading_layer": numba.config.THREADING_LAYER, "host": platform.node()}
+            "numba_threading_layer": numba.config.THREADING_LAYER, "thread_waiting": threading.CHOICE,
+            "host": platform.node()}
 
 
 def atomic_write_text(path, text):
@@ -77,16 +84,38 @@ def save_engine_checkpoint(engine, path):
 
 
 def write_run_metadata(out_dir, case_path, resolved, seed):
-    """Write ``case.resolved.toml`` (re-runnable) and ``run_info.json`` next to the outputs."""
-    if not is_root():
-        return
-    out_dir = Path(out_dir)
-    clean = _drop_none(resolved)
-    atomic_write_text(out_dir / "case.resolved.toml", tomli_w.dumps(clean))
+    """Write ``case.resolved.toml`` (re-runnable) and ``run_info.json`` next to the outputs.
+
+    Collective: call it on every rank (the version listing initialises PETSc); rank 0 writes."""
     info = {"case_file": str(Path(case_path).resolve()), "command": sys.argv,
             "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "seed": seed, "versions": versions(), **runtime()}
+    if not is_root():
+        return
+    out_dir = Path(out_dir)
+    atomic_write_text(out_dir / "case.resolved.toml", tomli_w.dumps(_drop_none(resolved)))
     atomic_write_text(out_dir / "run_info.json", json.dumps(info, indent=2))
+
+
+def check_output_folder(path):
+    """Refuse an output folder that cannot be created or written, before any computation:
+    an existing file, a path under a file, or a folder without write permission."""
+    from cosim.errors import CaseError
+    path = Path(path)
+    existing = path
+    while not existing.exists():
+        if existing.is_symlink():  # a dangling link
+            raise CaseError("<command line>", "--out", str(path), f"{existing} is a broken symbolic link")
+        existing = existing.parent
+    if not existing.is_dir():
+        what = "is a file" if existing == path else f"lies under {existing}, which is a file"
+        raise CaseError("<command line>", "--out", str(path), f"the output folder {what}; give a folder")
+    try:  # os.access says yes to root even on a read-only file system: try it
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as exc:
+        raise CaseError("<command line>", "--out", str(path),
+                        f"cannot write in {existing} ({exc.strerror}); give a folder you may write to") from None
 
 
 def _drop_none(obj):

@@ -153,6 +153,10 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
     return w_start, w_idx, w_particle, w_order
 
 
+#: particles spread over more than this many interaction ranges: a diverged run, not a model
+MAX_SPREAD = 1e9
+
+
 @njit(cache=True)
 def build_cell_grid(pos, n_active, cell_size, max_cells):
     """Counting-sort particles into a uniform grid covering their bounding box.
@@ -169,6 +173,8 @@ def build_cell_grid(pos, n_active, cell_size, max_cells):
         for d in range(3):
             lo[d] = min(lo[d], pos[i, d])
             hi[d] = max(hi[d], pos[i, d])
+    for d in range(3):  # at most max_cells per axis, so the cell counts below fit an int64
+        cell_size = max(cell_size, (hi[d] - lo[d]) / max_cells)
     dims = np.ones(3, dtype=np.int64)
     while True:
         total = 1
@@ -391,6 +397,11 @@ class NeighborList:
                                      "one, or a force or velocity set to NaN/inf?)")
         max_cells = max(1000, self.max_cells_per_particle * n_active)
         r_max = float(radius[:n_active].max())
+        spread = float(np.max(np.ptp(pos[:n_active], axis=0))) if n_active else 0.0
+        if not spread < MAX_SPREAD * (2.0 * r_max + self.skin):
+            raise FloatingPointError(f"neighbour build: the particles spread over {spread:.3g} m, more than "
+                                     f"{MAX_SPREAD:.0e} interaction ranges; the run has diverged (a force, "
+                                     "velocity or time step far too large?)")
         grid = build_cell_grid(pos, n_active, 2.0 * r_max + self.skin, max_cells)
         lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
         n = np.int64(n_active)

@@ -161,21 +161,70 @@ def save_packing(path, positions, radii, **metadata):
 
 
 def load_packing(path):
-    """Read a packing written by :func:`save_packing`, YADE/ESyS text, or a LIGGGHTS dump."""
+    """Read a packing written by :func:`save_packing`, YADE/ESyS text, or a LIGGGHTS dump.
+
+    Returns ``(positions (n, 3), radii (n,))``. Raises ValueError naming the file and
+    what is wrong (not UTF-8, no spheres, arrays of different lengths, missing columns,
+    values that are not finite, radii that are not positive, with the first bad sphere).
+    """
     path = Path(path)
     if path.suffix == ".npz":
         with np.load(path) as data:
-            return np.asarray(data["positions"], float), np.asarray(data["radii"], float)
-    text = path.read_text().splitlines()
+            missing = [k for k in ("positions", "radii") if k not in data]
+            if missing:
+                raise ValueError(f"{path}: no array {missing[0]!r} (found {sorted(data)})")
+            positions, radii = np.asarray(data["positions"], float), np.asarray(data["radii"], float)
+        if positions.ndim != 2 or positions.shape[1:] != (3,) or radii.shape != positions.shape[:1]:
+            raise ValueError(f"{path}: 'positions' must be (n, 3) and 'radii' (n,); found {positions.shape} "
+                             f"and {radii.shape}")
+        return _checked(path, positions, radii)
+    try:
+        text = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte {exc.start}); a packing is .npz or text") from None
     atoms = [i for i, line in enumerate(text) if line.startswith("ITEM: ATOMS")]
     if atoms:
         cols = text[atoms[0]].split()[2:]
-        table = np.loadtxt(text[atoms[0] + 1:], ndmin=2)
+        missing = [c for c in ("x", "y", "z", "radius") if c not in cols]
+        if missing:
+            raise ValueError(f"{path}: the LIGGGHTS dump has no column {missing[0]!r} (columns: {' '.join(cols)})")
+        table = _table(path, text[atoms[0] + 1:], len(cols))
         if "id" in cols:  # a multi-rank LIGGGHTS run writes the atoms in rank order
             table = table[np.argsort(table[:, cols.index("id")], kind="stable")]
         idx = [cols.index(c) for c in ("x", "y", "z", "radius")]
-        return table[:, idx[:3]].copy(), table[:, idx[3]].copy()
-    table = np.loadtxt(path, ndmin=2, comments="#")
+        return _checked(path, table[:, idx[:3]].copy(), table[:, idx[3]].copy())
+    rows = [line.split("#")[0] for line in text if line.split("#")[0].strip()]
+    table = _table(path, rows, None)
     if table.shape[1] < 4:
         raise ValueError(f"{path}: a text packing needs 4 columns 'x y z r', found {table.shape[1]}")
-    return table[:, :3].copy(), table[:, 3].copy()
+    return _checked(path, table[:, :3].copy(), table[:, 3].copy())
+
+
+def _table(path, rows, columns):
+    """The numbers of ``rows`` (text lines) as a 2-D array; a ragged or non-numeric row is named."""
+    if not rows:
+        raise ValueError(f"{path}: no spheres in the file")
+    values = []
+    for i, row in enumerate(rows):
+        try:
+            values.append([float(v) for v in row.split()])
+        except ValueError:
+            raise ValueError(f"{path}: sphere {i + 1} ({row.strip()[:60]!r}) is not a row of numbers") from None
+        want = columns or len(values[0])
+        if len(values[-1]) != want:
+            raise ValueError(f"{path}: sphere {i + 1} has {len(values[-1])} numbers, the first has {want}")
+    return np.array(values, dtype=float)
+
+
+def _checked(path, positions, radii):
+    """Refuse non-finite values and radii that are not positive, naming the first such sphere."""
+    bad = np.flatnonzero(~np.isfinite(positions).all(axis=1) | ~np.isfinite(radii))
+    if bad.size:
+        i = bad[0]
+        raise ValueError(f"{path}: {bad.size} sphere(s) with a NaN or infinite value (first: sphere {i + 1}, "
+                         f"x y z r = {positions[i].tolist()} {radii[i]})")
+    bad = np.flatnonzero(radii <= 0)
+    if bad.size:
+        raise ValueError(f"{path}: {bad.size} sphere(s) with radius <= 0 (first: sphere {bad[0] + 1}, "
+                         f"r = {radii[bad[0]]})")
+    return positions, radii

@@ -61,18 +61,47 @@ class TaggedMesh:
         return sorted(n for n, (d, _) in self.groups.items() if d == dim)
 
 
-def _model_to_tagged_mesh(comm: MPI.Comm, rank: int) -> TaggedMesh:
-    """Distribute the current gmsh model (alive on ``rank``) into a TaggedMesh."""
-    groups = None
+class MeshError(ValueError):
+    """gmsh could not make a usable tetrahedral mesh of a source (raised on every rank)."""
+
+
+def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
+    """Build a gmsh model with ``build()`` on ``rank`` and distribute it into a TaggedMesh.
+
+    A failure on ``rank`` (a syntax error, a file that is not a mesh, no tetrahedra, no
+    volume group) is broadcast and raised as :class:`MeshError` on every rank, so no rank
+    is left waiting for a mesh that will not come."""
+    failure, groups = None, None
     if comm.rank == rank:
-        groups = {gmsh.model.getPhysicalName(dim, tag): (dim, tag)
-                  for dim, tag in gmsh.model.getPhysicalGroups()}
-        if not any(dim == 3 for dim, _ in groups.values()):
-            raise ValueError("the gmsh model has no 3D physical group: cells outside "
-                             "physical groups are dropped, so tag the volume(s)")
-    groups = comm.bcast(groups, root=rank)
-    mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
-    return TaggedMesh(mesh, cell_tags, facet_tags, groups)
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            build()
+            groups = {gmsh.model.getPhysicalName(dim, tag): (dim, tag)
+                      for dim, tag in gmsh.model.getPhysicalGroups()}
+            failure = _unusable(groups)
+        except Exception as exc:  # gmsh reports every error as a bare Exception
+            failure = f"gmsh: {exc}"
+    failure, groups = comm.bcast((failure, groups), root=rank)
+    try:
+        if failure:
+            raise MeshError(failure)
+        mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
+        return TaggedMesh(mesh, cell_tags, facet_tags, groups)
+    finally:
+        if comm.rank == rank:
+            gmsh.finalize()
+
+
+def _unusable(groups: dict[str, tuple[int, int]]) -> str | None:
+    """Why the current gmsh model cannot be distributed, or None."""
+    if not any(dim == 3 for dim, _ in groups.values()):
+        return ("the gmsh model has no 3D physical group: cells outside physical groups are dropped, "
+                "so tag the volume(s)")
+    tets = gmsh.model.mesh.getElementsByType(4)[0]
+    if len(tets) == 0:
+        return "gmsh made no tetrahedra (an empty or degenerate geometry? check the .geo parameters and size)"
+    return None
 
 
 def load_geo(path: str | Path, mesh_size: float, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -84,28 +113,13 @@ def load_geo(path: str | Path, mesh_size: float, comm: MPI.Comm = MPI.COMM_WORLD
     in ``meshes/``.
     """
     path = _resolve(path, ".geo")
-    if comm.rank == rank:
-        gmsh.initialize()
-        _generate(path, mesh_size, parameters)
-    try:
-        return _model_to_tagged_mesh(comm, rank)
-    finally:
-        if comm.rank == rank:
-            gmsh.finalize()
+    return _distributed(comm, rank, lambda: _generate(path, mesh_size, parameters))
 
 
 def load_msh(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, rank: int = 0) -> TaggedMesh:
     """Read a gmsh ``.msh`` file (with physical groups) and distribute it."""
     path = _resolve(path, ".msh")
-    if comm.rank == rank:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.merge(str(path))
-    try:
-        return _model_to_tagged_mesh(comm, rank)
-    finally:
-        if comm.rank == rank:
-            gmsh.finalize()
+    return _distributed(comm, rank, lambda: gmsh.merge(str(path)))
 
 
 def load_mesh(path: str | Path, mesh_size: float | None = None, comm: MPI.Comm = MPI.COMM_WORLD,

@@ -16,12 +16,12 @@ interface facets).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 
 from cosim.apps import dem as dem_app
 from cosim.apps import fe as fe_app
+from cosim.apps import on_root
 from cosim.interface import Interface
 from cosim.outputs import CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, say, write_run_metadata
 
@@ -34,8 +34,25 @@ COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interfa
            "momentum_total_z", "unbalanced_force_ratio", "coordination_number"]
 
 
-def prepare(case, case_path):
-    return dem_app.prepare(case, case_path) if is_root() else None
+def prepare(case, case_path, out_dir, resume):
+    """The FE solid (all ranks), the interface, the DEM engine (rank 0) and the two time
+    steps, each within its stability limit; collective."""
+    from cosim.errors import CaseError
+    if resume:
+        raise CaseError(case_path, "--resume", True, "coupled runs cannot resume yet; run without --resume")
+    comm = mpi_comm()
+    solid = fe_app.build_solid(case, case_path)
+    material = [m.name for m in case.dem.materials].index(case.coupling.material)
+    interface = Interface(solid, case.coupling.interface, material)
+    engine = on_root(comm, lambda: dem_app.build_engine(case_path, case, dem_app.read_inputs(case, case_path),
+                                                        extra_facets=[interface.facets]))
+    dem_dt = comm.bcast(engine.dt if engine else None, root=0)
+    fe_dt, dem_dt, n_sub = time_steps(dem_dt, case.time.safety_factor * solid.dt_critical, case.coupling.subcycles)
+    solid.dt = fe_dt
+    if engine is not None:
+        engine.dt = dem_dt
+    dem_app.check_steps(case_path, case.time, fe_dt)
+    return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
 
 
 def time_steps(dem_dt, fe_dt_stable, subcycles=None):
@@ -45,23 +62,12 @@ def time_steps(dem_dt, fe_dt_stable, subcycles=None):
     return fe_dt, fe_dt / n, n
 
 
-def run(case, resolved, case_path, out_dir, resume=False):
-    from cosim.errors import CaseError
-    if resume:
-        raise CaseError(case_path, "--resume", True, "coupled runs cannot resume yet; run without --resume")
-    comm = mpi_comm()
-    out_dir = Path(out_dir)
-    built = prepare(case, case_path)
-    solid = fe_app.build_solid(case, case_path)
-    material = [m.name for m in case.dem.materials].index(case.coupling.material)
-    interface = Interface(solid, case.coupling.interface, material)
-    engine = dem_app.build_engine(case, built, extra_facets=[interface.facets]) if is_root() else None
-    dem_dt = comm.bcast(engine.dt if engine else None, root=0)
-    fe_dt, dem_dt, n_sub = time_steps(dem_dt, case.time.safety_factor * solid.dt_critical, case.coupling.subcycles)
-    solid.dt = fe_dt
-    if engine is not None:
-        engine.dt = dem_dt
-    write_run_metadata(out_dir, case_path, resolved, case.case.seed)
+def run(prepared):
+    case, out_dir = prepared.case, prepared.out_dir
+    solid, interface, engine = (prepared.built[k] for k in ("solid", "interface", "engine"))
+    fe_dt, n_sub = solid.dt, prepared.built["subcycles"]
+    dem_dt = fe_dt / n_sub
+    write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
 
     total = case.time.steps or int(math.ceil(case.time.duration / fe_dt))
     interval = case.output.interval or total * fe_dt / 20
@@ -70,7 +76,7 @@ def run(case, resolved, case_path, out_dir, resume=False):
         f"{total} FE steps, output every {every}")
 
     series = CsvSeries(out_dir / "series.csv", COLUMNS) if is_root() else None
-    frames = PvdCollection(out_dir / "particles.pvd") if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd") if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
     fields = FieldWriter(solid, out_dir / "fields")
     progress = ProgressLine(case.case.name, total, case.output.progress_interval)
@@ -120,6 +126,7 @@ def momentum(solid, engine, interface):
 
 
 def record(solid, engine, interface, series, frames, out_dir):
+    fe_app.check_finite(solid)
     fe, de, transit = momentum(solid, engine, interface)
     nodes = interface.owned_nodes
     comm = mpi_comm()
@@ -132,4 +139,5 @@ def record(solid, engine, interface, series, frames, out_dir):
     force = interface.facets.vertex_impulse.sum(axis=0) / solid.dt
     series.append([solid.time, solid.step_count, *force, uz / count, *fe, *de, *transit, *(fe + de + transit),
                    diagnostics.unbalanced_force_ratio(engine), diagnostics.coordination_number(engine)])
-    frames.add(engine.time, write_frame(out_dir / "frames", engine, solid.step_count))
+    if frames is not None:
+        frames.add(engine.time, write_frame(out_dir / "frames", engine, solid.step_count))

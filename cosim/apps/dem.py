@@ -2,6 +2,8 @@
 duration, with CSV time series, ParaView frames, checkpoints and a progress line.
 
 The DEM runs on MPI rank 0; other ranks wait (the DEM is not domain-decomposed yet).
+A given time step is checked against the critical step before the run, and a packing
+file for NaN/inf values, lengths and initial overlaps.
 """
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.case import resolve_path
+from cosim.case import resolve_path, warn
 from cosim.errors import CaseError
 from cosim.outputs import (
     CsvSeries,
@@ -27,17 +29,41 @@ CHECKPOINT = "checkpoint.npz"
 PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint clock
 
 
-def prepare(case, case_path):
-    """Read/generate the particles and walls; every input failure is a CaseError."""
+MAX_STEPS = 10**9  # a longer run is a typo (a duration in ms written in s), not a plan
+OVERLAP_WARNING = 0.05  # initial overlaps above this fraction of the smaller radius are reported
+
+
+def prepare(case, case_path, out_dir, resume):
+    """On rank 0, where the DEM runs: the engine, built from the case (or loaded from the
+    checkpoint to resume), with its time step checked. None on the other ranks."""
+    if not is_root():
+        return None
+    if resume:
+        return load_checkpoint(case_path, Path(out_dir) / CHECKPOINT)
+    engine = build_engine(case_path, case, read_inputs(case, case_path))
+    check_time_step(case_path, case.time, engine)
+    return engine
+
+
+def load_checkpoint(case_path, checkpoint):
+    from de_domain import Engine
+    if not checkpoint.exists():
+        raise CaseError(case_path, "--resume", str(checkpoint),
+                        "no checkpoint in the output folder; run without --resume")
+    try:
+        return Engine.load_checkpoint(checkpoint)
+    except Exception as exc:
+        raise CaseError(checkpoint, "<checkpoint>", checkpoint.name, f"cannot be read ({exc}); run without --resume") \
+            from None
+
+
+def read_inputs(case, case_path):
+    """Read/generate the spheres and read the facet meshes; every input failure is a CaseError."""
     dem = case.dem
     names = [m.name for m in dem.materials]
     p = dem.particles
     if p.source == "file":
-        from de_domain.packing import load_packing
-        try:
-            positions, radii = load_packing(resolve_path(case_path, p.file))
-        except Exception as exc:
-            raise CaseError(case_path, "dem.particles.file", p.file, f"could not read the packing: {exc}") from None
+        positions, radii = read_packing(case_path, "dem.particles.file", p.file)
     else:
         from de_domain.packing import random_cloud
         rng = np.random.default_rng(case.case.seed)
@@ -46,8 +72,6 @@ def prepare(case, case_path):
             positions, radii = random_cloud(radii, p.box[0], p.box[1], seed=case.case.seed)
         except ValueError as exc:
             raise CaseError(case_path, "dem.particles.count", p.count, str(exc)) from None
-    if len(radii) == 0 or np.any(radii <= 0):
-        raise CaseError(case_path, "dem.particles", len(radii), "need at least one sphere, all radii > 0")
     facets = {}
     for i, w in enumerate(dem.walls):
         if w.type == "facets":
@@ -60,7 +84,66 @@ def prepare(case, case_path):
     return {"positions": positions, "radii": radii, "facets": facets}
 
 
-def build_engine(case, built, extra_facets=()):
+def read_packing(case_path, key, name):
+    """(positions, radii) of the packing file ``name`` named by ``key``; its initial
+    overlaps above OVERLAP_WARNING of the smaller radius are reported once."""
+    from de_domain.packing import load_packing
+    try:
+        positions, radii = load_packing(resolve_path(case_path, name))
+    except Exception as exc:
+        raise CaseError(case_path, key, name, f"could not read the packing: {exc}") from None
+    warn_overlaps(case_path, key, name, positions, radii)
+    return positions, radii
+
+
+def warn_overlaps(case_path, key, name, positions, radii):
+    from scipy.spatial import cKDTree
+    pairs = cKDTree(positions).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
+    if len(pairs) == 0:
+        return
+    i, j = pairs[:, 0], pairs[:, 1]
+    overlap = (radii[i] + radii[j] - np.linalg.norm(positions[i] - positions[j], axis=1)) / np.minimum(radii[i],
+                                                                                                      radii[j])
+    large = overlap > OVERLAP_WARNING
+    if np.any(large):
+        warn(case_path, key, name, f"{int(large.sum())} sphere pair(s) overlap by more than "
+                                   f"{100 * OVERLAP_WARNING:.0f} % of the smaller radius (largest "
+                                   f"{100 * overlap.max():.0f} %): they push apart at the start")
+
+
+def check_time_step(case_path, time_section, engine):
+    """A given Δt must not exceed the critical step (docs/design.md §2.14); above half of
+    it a warning; and the run must have a sensible number of steps."""
+    critical = engine.critical_timestep()
+    dt = time_section.dt
+    if dt is not None and dt > critical:
+        raise CaseError(case_path, "time.dt", dt,
+                        f"{dt / critical:.3g} x the critical step {critical:.4g} s of these spheres "
+                        f"(docs/design.md §2.14); the explicit step would diverge. Give dt <= "
+                        f"{0.5 * critical:.4g} s, or omit it for time.safety_factor x critical")
+    if dt is not None and dt > 0.5 * critical:
+        warn(case_path, "time.dt", dt, f"{dt / critical:.2f} x the critical step {critical:.4g} s: close to the "
+                                       "stability limit with many contacts per sphere")
+    check_steps(case_path, time_section, engine.dt)
+
+
+def check_steps(case_path, time_section, dt):
+    """The run length in steps of ``dt`` is at most MAX_STEPS."""
+    if time_section.duration is not None and time_section.duration / dt > MAX_STEPS:
+        raise CaseError(case_path, "time.duration", time_section.duration,
+                        f"{time_section.duration / dt:.3g} steps of dt = {dt:.4g} s; at most {MAX_STEPS:.0e} "
+                        "steps per run")
+
+
+def build_engine(case_path, case, built, extra_facets=()):
+    """The Engine of the case's [dem] section and the ``built`` inputs (read_inputs)."""
+    try:
+        return _engine(case, built, extra_facets)
+    except ValueError as exc:  # the de_domain constructors check their own inputs
+        raise CaseError(case_path, "dem", "[dem]", str(exc)) from None
+
+
+def _engine(case, built, extra_facets):
     from de_domain import Engine, Material, Particles, PlaneWall
     dem = case.dem
     names = [m.name for m in dem.materials]
@@ -81,28 +164,20 @@ def build_engine(case, built, extra_facets=()):
                   local_damping=dem.local_damping, viscous_damping=dem.viscous_damping)
 
 
-def run(case, resolved, case_path, out_dir, resume=False):
-    out_dir = Path(out_dir)
+def run(prepared):
+    """The DEM on rank 0; the other ranks wait (the DEM is not domain-decomposed yet)."""
+    case = prepared.case
+    write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
     if is_root():
-        built = prepare(case, case_path)
-        _run_root(case, resolved, case_path, out_dir, built, resume)
+        _run_root(case, prepared.built, prepared.out_dir, prepared.resume)
     mpi_comm().Barrier()
 
 
-def _run_root(case, resolved, case_path, out_dir, built, resume):
-    from de_domain import Engine, diagnostics
+def _run_root(case, engine, out_dir, resume):
+    from de_domain import diagnostics
     from de_domain.io import write_frame
 
     checkpoint = out_dir / CHECKPOINT
-    if resume:
-        if not checkpoint.exists():
-            raise CaseError(case_path, "--resume", str(checkpoint),
-                            "no checkpoint in the output folder; run without --resume")
-        engine = Engine.load_checkpoint(checkpoint)
-    else:
-        engine = build_engine(case, built)
-    write_run_metadata(out_dir, case_path, resolved, case.case.seed)
-
     total = case.time.steps or int(np.ceil(case.time.duration / engine.dt))
     interval = case.output.interval or total * engine.dt / 20
     every = max(1, int(round(interval / engine.dt)))

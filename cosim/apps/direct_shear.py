@@ -82,11 +82,21 @@ def curve_of(sp):
                           sp.truncate_above)
 
 
-def prepare(case, case_path):
-    """Everything that can fail on input, before any computation."""
+def prepare(case, case_path, out_dir, resume):
+    """Everything that can fail on input, before any computation, on rank 0 (where the
+    DEM runs): the packing file or the sieve curve, the checkpoint to resume from, and a
+    given time step against the critical step of the smallest grain. None elsewhere."""
+    if not is_root():
+        return None
     sp, ds = case.specimen, case.direct_shear
+    out_dir = Path(out_dir)
+    if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / SHEAR_STATE).exists()):
+        raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
+                        "no shear checkpoint in the output folder (checkpoints start with the shearing); "
+                        "run without --resume")
     built = {}
     if sp.source == "file":
+        from cosim.apps.dem import warn_overlaps
         try:
             built["packing"] = read_specimen(resolve_path(case_path, sp.file))
         except Exception as exc:
@@ -97,12 +107,27 @@ def prepare(case, case_path):
         if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > L + slack):
             raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {L} m x {L} m box "
                             "(x, y in [0, L], overlapping a side by at most 25 % of the radius)")
+        warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
+        r_min = float(radii.min())
     else:
         try:
             built["curve"] = curve_of(sp)
         except ValueError as exc:
             raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
+        r_min = 0.5 * float(built["curve"].diameters[0])
+    if case.time.dt is not None:
+        from cosim.apps.dem import check_time_step
+        check_time_step(case_path, case.time, _one_grain(case, r_min))
     return built
+
+
+def _one_grain(case, radius):
+    """An engine holding one sand grain of ``radius``: its critical step is the specimen's
+    smallest (docs/design.md §2.14)."""
+    from de_domain import Engine, Particles
+    mats, sand, _, _ = materials(case)
+    grain = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats)
+    return Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt)
 
 
 def read_specimen(path):
@@ -121,7 +146,7 @@ def read_specimen(path):
 
 
 # --------------------------------------------------------------------------- 1. specimen
-def make_specimen(case, case_path, built, out_dir, cache=None):
+def make_specimen(case, built, out_dir, cache=None):
     """Load or generate the specimen; returns (positions, radii, height, info dict)."""
     from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
     from de_domain.packing import save_packing
@@ -319,15 +344,12 @@ def _record(test, sums, n, z0):
 
 
 # --------------------------------------------------------------------------- the run
-def run(case, resolved, case_path, out_dir, resume=False, specimen_cache=None):
-    out_dir = Path(out_dir)
-    if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / SHEAR_STATE).exists()):
-        raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
-                        "no shear checkpoint in the output folder (checkpoints start with the shearing); "
-                        "run without --resume")
+def run(prepared, specimen_cache=None):
+    """The test on rank 0; the other ranks wait (the DEM is not domain-decomposed yet)."""
+    case = prepared.case
+    write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
     if is_root():
-        built = prepare(case, case_path)
-        _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume)
+        _run_root(case, prepared.out_dir, prepared.built, specimen_cache, prepared.resume)
     mpi_comm().Barrier()
 
 
@@ -353,12 +375,11 @@ def _load_checkpoint(case, out_dir):
     return test, state
 
 
-def _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume=False):
+def _run_root(case, out_dir, built, specimen_cache, resume=False):
     from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
     from cosim.lab.shear_report import plot_run, read_series, summarize
     name, ds = case.case.name, case.direct_shear
     log = lambda text: say(f"[{name}] {text}")  # noqa: E731
-    write_run_metadata(out_dir, case_path, resolved, case.case.seed)
     t_start = time.perf_counter()
 
     if resume:
@@ -368,7 +389,7 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume=
         log(f"resumed at step {engine.step_count}, δ = {test.displacement * 1e3:.3f} mm")
     else:
         # 1. specimen
-        positions, radii, height, specimen_info = make_specimen(case, case_path, built, out_dir, specimen_cache)
+        positions, radii, height, specimen_info = make_specimen(case, built, out_dir, specimen_cache)
         # 2. shear box
         test = ShearTest.build(case, positions, radii, height)
         engine = test.engine
@@ -379,8 +400,9 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume=
         consolidation_steps = test.consolidate(log)
         loop = {"specimen_info": specimen_info, "consolidation_steps": consolidation_steps,
                 "e_consolidated": test.void_ratio(), "z0": float(test.plate.point[2]), "next_row": 0.0,
-                "sums": [0.0, 0.0, 0.0], "n": 0, "servo_errors": [],
-                "wall_clock_shear_s": time.perf_counter() - t_consolidation, "next_frame": 0.0}
+                "sums": [0.0, 0.0, 0.0], "n": 0, "servo_errors": [], "next_frame": 0.0,
+                "wall_clock_consolidation_s": time.perf_counter() - t_consolidation, "wall_clock_shear_s": 0.0,
+                "wall_clock_before_s": 0.0}
     height, z0 = test.height0, loop["z0"]
 
     # 4. shearing
@@ -422,9 +444,11 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume=
         if delta >= ds.shear_distance:
             break
         if time.perf_counter() - last_checkpoint > case.output.checkpoint_interval:
+            now = time.perf_counter()
             loop.update(next_row=next_row, sums=sums.tolist(), n=n, servo_errors=servo_errors,
-                        wall_clock_shear_s=loop["wall_clock_shear_s"] + time.perf_counter() - t0)
-            t0 = last_checkpoint = time.perf_counter()
+                        wall_clock_shear_s=loop["wall_clock_shear_s"] + now - t0,
+                        wall_clock_before_s=loop["wall_clock_before_s"] + now - t_start)
+            t0 = t_start = last_checkpoint = now
             _save_checkpoint(out_dir, test, loop)
     progress.update(engine.step_count, engine.time, force=True)
     series.close()
@@ -449,7 +473,8 @@ def _run_root(case, resolved, case_path, out_dir, built, specimen_cache, resume=
         "love_weber_normal_over_wall": lw_ratio(data["lw_normal_stress"], data["normal_stress"]),
         "love_weber_shear_over_wall": lw_ratio(np.abs(data["lw_shear_stress"]), data["shear_stress"]),
         "shear_lower_over_upper": lw_ratio(data["shear_stress_lower"], data["shear_stress"]),
-        "wall_clock_shear_s": shear_wall_clock, "wall_clock_total_s": time.perf_counter() - t_start,
+        "wall_clock_consolidation_s": loop["wall_clock_consolidation_s"], "wall_clock_shear_s": shear_wall_clock,
+        "wall_clock_total_s": loop["wall_clock_before_s"] + time.perf_counter() - t_start,
         **{k: v for k, v in specimen_info.items() if k != "generation_log"},
     })
     atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
@@ -465,7 +490,7 @@ def summary_text(s):
     return "\n".join([
         f"grains {s['grains']}, d50 {s['d50'] * 1e3:.2f} mm, h {s['sample_height'] * 1e3:.2f} mm, "
         f"sigma_n {s['normal_stress'] / 1e3:.0f} kPa",
-        f"void ratio: generated {s.get('void_ratio_generated') or float('nan'):.4f}, consolidated "
+        f"void ratio: {_initial_void_ratio(s)}, consolidated "
         f"{s['void_ratio_consolidated']:.4f}, end {s['void_ratio_end']:.4f} "
         f"(sphere 0.45h {s['void_ratio_sphere_045h_end']:.4f}, sphere 0.20h {s['void_ratio_sphere_020h_end']:.4f})",
         f"peak tau/sigma_n {s['peak_stress_ratio']:.3f} (phi_peak {s['peak_friction_angle_deg']:.1f} deg) at "
@@ -478,8 +503,17 @@ def summary_text(s):
         f"servo |sigma - sigma_n|/sigma_n: max {servo if servo is not None else float('nan'):.4f} over the CSV rows; "
         f"Love-Weber/wall: normal {s['love_weber_normal_over_wall']:.3f}, shear {s['love_weber_shear_over_wall']:.3f}; "
         f"lower/upper shear force {s['shear_lower_over_upper']:.3f}",
-        f"wall clock: shear {s['wall_clock_shear_s']:.0f} s, total {s['wall_clock_total_s']:.0f} s",
+        f"wall clock: specimen {s.get('generation_wall_clock_s', 0.0):.0f} s, consolidation "
+        f"{s.get('wall_clock_consolidation_s', 0.0):.0f} s, shear {s['wall_clock_shear_s']:.0f} s, total "
+        f"{s['wall_clock_total_s']:.0f} s (a resumed run counts every process up to its last checkpoint)",
     ]) + "\n"
+
+
+def _initial_void_ratio(s):
+    e = s.get("void_ratio_generated")
+    if s.get("source") in ("under_compaction", "radius_expansion"):
+        return f"generated {e:.4f}"
+    return f"from {s.get('source')} {e:.4f}" if e is not None else f"from {s.get('source')} (not stored there)"
 
 
 def _frames(case, out_dir, loop, resume_time=None, count=10):

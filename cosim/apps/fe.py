@@ -14,15 +14,35 @@ from pathlib import Path
 import numpy as np
 
 from cosim.case import mesh_path
-from cosim.errors import CaseError
+from cosim.errors import CaseError, RunFailed
 from cosim.outputs import CsvSeries, ProgressLine, is_root, mpi_comm, say, write_run_metadata
 
 PROGRESS_CHUNK = 50  # steps between checks of the progress line and checkpoint clock
 
 
-def prepare(case, case_path):
-    """Nothing to read: the case loader checked the mesh file, group names and α_τ bound."""
-    return None
+def prepare(case, case_path, out_dir, resume):
+    """The solid: the mesh made and distributed, the operators assembled, the time step
+    checked against the critical one, and the checkpoint to resume from found; collective."""
+    comm = mpi_comm()
+    checkpoint = Path(out_dir) / f"checkpoint.rank{comm.rank}of{comm.size}.npz"
+    if resume and not comm.allreduce(checkpoint.exists(), op=_mpi_land()):
+        raise CaseError(case_path, "--resume", str(checkpoint),
+                        f"no checkpoint for {comm.size} rank(s) in the output folder")
+    solver = build_solid(case, case_path)
+    dt = case.time.dt
+    if dt is not None:
+        if dt > solver.dt_critical:
+            raise CaseError(case_path, "time.dt", dt,
+                            f"{dt / solver.dt_critical:.3g} x the critical step {solver.dt_critical:.4g} s of this "
+                            f"mesh (h_min / c_p, docs/design.md §4.6); give dt <= {solver.dt_critical:.4g} s or omit "
+                            "it for time.safety_factor x critical")
+        solver.dt = dt
+    from cosim.apps.dem import check_steps
+    check_steps(case_path, case.time, solver.dt)
+    if resume:
+        with np.load(checkpoint) as state:
+            solver.restore_state(state)
+    return solver
 
 
 def default_alpha_tau(case):
@@ -32,6 +52,15 @@ def default_alpha_tau(case):
 
 
 def build_solid(case, case_path):
+    """The ExplicitSolid of the case's [fe] section; a mesh gmsh cannot make is a CaseError."""
+    from fe_domain.mesh import MeshError
+    try:
+        return _solid(case, case_path)
+    except MeshError as exc:
+        raise CaseError(case_path, "fe.mesh", case.fe.mesh, f"cannot be meshed: {exc}") from None
+
+
+def _solid(case, case_path):
     from fe_domain.build import build_solid as build
     fe = case.fe
     if len(fe.materials) == 1 and fe.materials[0].group is None:
@@ -47,22 +76,13 @@ def build_solid(case, case_path):
                  safety_factor=case.time.safety_factor, geometry_parameters=fe.geometry_parameters or None)
 
 
-def run(case, resolved, case_path, out_dir, resume=False):
+def run(prepared):
     from fe_domain.output import ENERGY_COLUMNS, FieldWriter
 
     comm = mpi_comm()
-    out_dir = Path(out_dir)
+    case, out_dir, solver, resume = prepared.case, prepared.out_dir, prepared.built, prepared.resume
     checkpoint = out_dir / f"checkpoint.rank{comm.rank}of{comm.size}.npz"
-    if resume and not comm.allreduce(checkpoint.exists(), op=_mpi_land()):
-        raise CaseError(case_path, "--resume", str(checkpoint),
-                        f"no checkpoint for {comm.size} rank(s) in the output folder")
-    solver = build_solid(case, case_path)
-    if case.time.dt is not None:
-        solver.dt = case.time.dt
-    if resume:
-        with np.load(checkpoint) as state:
-            solver.restore_state(state)
-    write_run_metadata(out_dir, case_path, resolved, case.case.seed)
+    write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
 
     total = case.time.steps or int(np.ceil(case.time.duration / solver.dt))
     interval = case.output.interval or total * solver.dt / 20
@@ -87,6 +107,7 @@ def run(case, resolved, case_path, out_dir, resume=False):
     while solver.step_count < total:
         solver.run(min(every - solver.step_count % every, total - solver.step_count, PROGRESS_CHUNK))
         if solver.step_count % every == 0 or solver.step_count == total:
+            check_finite(solver)
             row = [solver.time, solver.step_count, _max_displacement(solver)]
             for name in reactions:
                 row.extend(solver.reaction(name))
@@ -108,6 +129,15 @@ def run(case, resolved, case_path, out_dir, resume=False):
         energies.close()
         _plots(case, out_dir, reactions)
     say(f"[{case.case.name}] done: t = {solver.time:.4e} s, largest displacement {_max_displacement(solver):.4e} m")
+
+
+def check_finite(solver):
+    """Collective: raise RunFailed on every rank if any rank's displacement or velocity
+    stopped being finite (the explicit step diverged, or a load overflowed)."""
+    local = bool(np.isfinite(solver.displacement).all() and np.isfinite(solver.velocity).all())
+    if not mpi_comm().allreduce(local, op=_mpi_land()):
+        raise RunFailed(f"the FE state is not finite at step {solver.step_count} (t = {solver.time:.4e} s): the run "
+                        "diverged; the rows and fields written so far are kept")
 
 
 def _max_displacement(solver):

@@ -31,32 +31,46 @@ def _done(out_dir, resolved):
         return False
 
 
-def run_series(case_paths, stresses, out_root, overrides=()):
+def validate_series(case_paths, stresses, out_root, overrides=()):
+    """Every (case, σ_n) run of the series, validated before any of them runs: a list of
+    (label, stress, Prepared)."""
+    from cosim.apps import Prepared
     from cosim.apps import direct_shear as app
     from cosim.case import load_case
     from cosim.errors import CaseError
-    from cosim.lab.shear_report import mohr_coulomb_fit, plot_series, plot_series_curves, read_series
+    from cosim.outputs import check_output_folder
 
     out_root = Path(out_root)
-    t0 = time.perf_counter()
+    check_output_folder(out_root)
     jobs = []
-    for path in case_paths:  # validate everything before running anything
+    for path in case_paths:
         for stress in stresses:
             case, resolved = load_case(path, list(overrides) + [f"direct_shear.normal_stress={float(stress)!r}"])
             if case.case.kind != "direct_shear":
                 raise CaseError(path, "case.kind", case.case.kind, "cosim series runs cases of kind 'direct_shear'")
-            app.prepare(case, path)
-            jobs.append((path, case, resolved, stress))
+            out_dir = out_root / case.case.name / f"{stress / 1e3:g}kPa"
+            built = app.prepare(case, path, out_dir, False)
+            jobs.append((case.case.name, stress, Prepared(case, resolved, Path(path), out_dir, False, built)))
+    return jobs
+
+
+def run_series(jobs, out_root):
+    """Run the validated ``jobs`` (:func:`validate_series`), reusing finished runs, and fit
+    the Mohr–Coulomb envelopes."""
+    from cosim.apps import direct_shear as app
+    from cosim.lab.shear_report import mohr_coulomb_fit, plot_series, plot_series_curves, read_series
+
+    out_root = Path(out_root)
+    t0 = time.perf_counter()
     results, curves = {}, {}
-    for path, case, resolved, stress in jobs:
-        label = case.case.name
-        out_dir = out_root / label / f"{stress / 1e3:g}kPa"
+    for label, stress, prepared in jobs:
+        out_dir = prepared.out_dir
         out_dir.mkdir(parents=True, exist_ok=True)
-        if _done(out_dir, resolved):
+        if _done(out_dir, prepared.resolved):
             say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa: reusing the finished run in {out_dir}")
         else:
             say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa -> {out_dir}")
-            app.run(case, resolved, path, out_dir, specimen_cache=out_root / label / "specimen.npz")
+            app.run(prepared, specimen_cache=out_root / label / "specimen.npz")
         summary = json.loads((out_dir / "summary.json").read_text())
         results.setdefault(label, []).append(summary)
         curves[f"{label} {stress / 1e3:g} kPa"] = read_series(out_dir / "series.csv")

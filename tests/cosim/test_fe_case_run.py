@@ -20,7 +20,7 @@ def block_case(tmp_path, steps=1500, **time):
     data = {
         "case": {"name": "block", "kind": "fe"},
         "time": {"steps": steps, "safety_factor": 0.5, **time},
-        "output": {"interval": 0.0, "vtk": True},
+        "output": {"interval": 0.0},
         "fe": {"mesh": "block.geo", "mesh_size": 0.5, "reactions": ["bottom"],
                "materials": [{"E": 10.0e6, "nu": 0.3, "rho": 2000.0}],
                "boundary_conditions": [{"type": "fixed", "boundary": "bottom"}],

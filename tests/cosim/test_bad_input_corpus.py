@@ -1,0 +1,314 @@
+"""A corpus of bad inputs, each refused by validation alone with exit 2 and one line that
+names what is wrong.
+
+Every entry starts from a shipped case of one of the four kinds (``runs/*.toml``, copied
+into a temporary folder with the packing it uses) and breaks one thing: a value through
+``--set``, the case text, a packing, a mesh or the output folder. Each entry is checked
+twice, with ``cosim check`` and with ``cosim run``: both must stop in validation with the
+same message (check-OK means the run starts; a refused run writes nothing). No entry runs
+a simulation.
+"""
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+
+RUNS = Path(__file__).parents[2] / "runs"
+BASES = {"dem": "demo_dem_settling.toml", "fe": "fe_footing.toml", "shear": "direct_shear_small.toml",
+         "coupled": "coupled_footing_on_sand.toml"}
+
+
+@dataclass
+class Bad:
+    """One bad input: the base case, what is done to it, and a fragment of the message."""
+    base: str
+    fragment: str
+    sets: list = field(default_factory=list)                 # --set overrides
+    edit: tuple = ()                                          # (old, new) replacements in the case text
+    append: str = ""                                          # text added at the end of the case
+    files: dict = field(default_factory=dict)                 # name -> bytes, or a callable(path) writing it
+    cut: str = None                                           # drop the section that starts with this
+    raw: bytes = None                                         # the whole case file, as bytes
+    out: str = None                                           # --out, relative to the folder ("{tmp}")
+    label: str = ""
+
+    def __str__(self):
+        return self.label or f"{self.base}: {' '.join(self.sets) or self.edit or self.append or self.fragment}"
+
+
+def npz(**arrays):
+    return lambda path: np.savez(path, **arrays)
+
+
+def text_packing(rows):
+    return "\n".join(rows).encode() + b"\n"
+
+
+PACKING_OK = ["0.01 0.01 0.01 0.001", "0.015 0.01 0.01 0.001", "0.02 0.02 0.01 0.0012"]
+DEM_FILE = (('source = "cloud"', 'source = "file"\nfile = "bed.txt"'),
+            ("count = 3000\n", ""), ("box = [[0.0, 0.0, 0.0], [0.03, 0.03, 0.06]]\n", ""),
+            ("radius = [0.0008, 0.0012]  # m\n", ""))
+SHEAR_FILE = (("[specimen]\n", '[specimen]\nsource = "file"\nfile = "specimen.npz"\n'),)
+NO_HEIGHT = (("sample_height = 0.025", ""),)
+SPECIMEN_FILE = '[specimen]\nsource = "file"\nfile = "specimen.npz"\n'
+LONG_NAME = "ä" * 200
+
+CORPUS = [
+    # ---------------------------------------------------------------- the case file itself
+    Bad("dem", "UTF-8", raw=b'[case]\nname = "caf\xe9"\nkind = "dem"\n', label="not UTF-8"),
+    Bad("dem", "valid TOML", raw=b"[case\nname = 1\n", label="TOML syntax error"),
+    Bad("dem", "valid TOML", raw=b'[case]\nname = "a"\nname = "b"\n', label="duplicate key"),
+    Bad("dem", "'case' = None: required", raw=b'[time]\nsteps = 1\n', label="no [case]"),
+    Bad("dem", "needs a [dem] section", raw=b'[case]\nname = "x"\nkind = "dem"\n[time]\nsteps = 1\n',
+        label="no [dem]"),
+    # ---------------------------------------------------------------- [case]
+    Bad("dem", "case.name", sets=['case.name="../../../x"']),
+    Bad("dem", "case.name", sets=['case.name="/tmp/abs"']),
+    Bad("dem", "case.name", sets=[f'case.name="{LONG_NAME}"'], label="200-character non-ASCII name"),
+    Bad("dem", "case.name", sets=['case.name=""']),
+    Bad("dem", "case.name", sets=['case.name="a b"']),
+    Bad("dem", "case.name", sets=["case.name=5"]),
+    Bad("dem", "case.kind", sets=['case.kind="dems"']),
+    Bad("dem", "case.seed", sets=["case.seed=-1"]),
+    Bad("dem", "case.seed", sets=["case.seed=1.5"]),
+    # ---------------------------------------------------------------- [time]
+    Bad("dem", "time.duration", sets=["time.duration=inf"]),
+    Bad("dem", "time.duration", sets=["time.duration=nan"]),
+    Bad("dem", "time.duration", sets=["time.duration=-0.1"]),
+    Bad("dem", "steps per run", sets=["time.duration=1e30"]),
+    Bad("dem", "exactly one", sets=["time.steps=100"]),
+    Bad("dem", "time.steps", sets=["time.steps=1.5"]),
+    Bad("dem", "critical step", sets=["time.dt=1e-3"]),
+    Bad("dem", "time.dt", sets=["time.dt=-1e-6"]),
+    Bad("dem", "time.dt", sets=["time.dt=inf"]),
+    Bad("dem", "time.safety_factor", sets=["time.safety_factor=0.9"]),
+    Bad("dem", "time.safety_factor", sets=["time.safety_factor=nan"]),
+    Bad("dem", "time.colour", sets=["time.colour=1"]),
+    # ---------------------------------------------------------------- [output]
+    Bad("dem", "output.interval", sets=["output.interval=-1.0"]),
+    Bad("dem", "must not exceed", sets=["output.interval=10.0"]),
+    Bad("dem", "output.vtk", sets=['output.vtk="yes"']),
+    Bad("dem", "output.vtk", sets=["output.vtk=1"]),
+    Bad("dem", "output.checkpoint_interval", sets=["output.checkpoint_interval=0.0"]),
+    Bad("dem", "output.progress_interval", sets=["output.progress_interval=inf"]),
+    Bad("dem", "unknown key", sets=["output.format='vtk'"]),
+    # ---------------------------------------------------------------- [dem]
+    Bad("dem", "dem.contact_law", sets=['dem.contact_law="hooke"']),
+    Bad("dem", "dem.gravity", sets=["dem.gravity=[nan, 0.0, -9.81]"]),
+    Bad("dem", "dem.gravity", sets=["dem.gravity=[0.0, -9.81]"]),
+    Bad("dem", "dem.gravity", sets=['dem.gravity="down"']),
+    Bad("dem", "dem.local_damping", sets=["dem.local_damping=1.0"]),
+    Bad("dem", "dem.local_damping", sets=["dem.local_damping=-0.1"]),
+    Bad("dem", "dem.viscous_damping", sets=["dem.viscous_damping=inf"]),
+    Bad("dem", "dem.materials[0].density", sets=["dem.materials[0].density=inf"]),
+    Bad("dem", "dem.materials[0].density", sets=["dem.materials[0].density=0.0"]),
+    Bad("dem", "dem.materials[0].young", sets=["dem.materials[0].young=inf"]),
+    Bad("dem", "dem.materials[0].young", sets=["dem.materials[0].young=-5.0"]),
+    Bad("dem", "dem.materials[0].poisson", sets=["dem.materials[0].poisson=0.5"]),
+    Bad("dem", "dem.materials[0].friction", sets=["dem.materials[0].friction=-1"]),
+    Bad("dem", "dem.materials[0].friction", sets=["dem.materials[0].friction=nan"]),
+    Bad("dem", "dem.materials[0].restitution", sets=["dem.materials[0].restitution=0.0"]),
+    Bad("dem", "dem.materials[0].restitution", sets=["dem.materials[0].restitution=1.5"]),
+    Bad("dem", "dem.materials[0].stiffness_ratio", sets=["dem.materials[0].stiffness_ratio=0.0"]),
+    Bad("dem", "dem.materials[0].rolling_stiffness", sets=["dem.materials[0].rolling_stiffness=-1.0"]),
+    Bad("dem", "unknown key", sets=['dem.materials[0].colour="red"']),
+    Bad("dem", "index 5", sets=["dem.materials[5].friction=0.3"]),
+    Bad("dem", "section.list[i].key", sets=["dem.materials.friction=0.3"]),
+    Bad("dem", "must be unique", append='[[dem.materials]]\nname = "sand"\ndensity = 1.0\nyoung = 1.0\n'),
+    Bad("dem", "dem.particles.count", sets=["dem.particles.count=0"]),
+    Bad("dem", "dem.particles.count", sets=['dem.particles.count="abc"']),
+    Bad("dem", "smaller than the box", sets=["dem.particles.radius=[0.01, 0.02]"]),
+    Bad("dem", "r_min <= r_max", sets=["dem.particles.radius=[0.002, 0.001]"]),
+    Bad("dem", "r_min <= r_max", sets=["dem.particles.radius=[0.0, 0.001]"]),
+    Bad("dem", "max corner", sets=["dem.particles.box=[[0.0, 0.0, 0.0], [0.0, 0.03, 0.06]]"]),
+    Bad("dem", "dem.particles.box", sets=["dem.particles.box=[[0.0, 0.0, 0.0], [0.03, 0.03, nan]]"]),
+    Bad("dem", "dem.particles.velocity", sets=["dem.particles.velocity=[inf, 0.0, 0.0]"]),
+    Bad("dem", "must be one of the materials", sets=['dem.particles.material="steel"']),
+    Bad("dem", "dem.particles.source", sets=['dem.particles.source="grid"']),
+    Bad("dem", "not used here", sets=['dem.particles.file="bed.npz"']),
+    Bad("dem", "must be one of the materials", sets=['dem.walls[0].material="steel"']),
+    Bad("dem", "non-zero", sets=["dem.walls[0].normal=[0.0, 0.0, 0.0]"]),
+    Bad("dem", "dem.walls[0].normal", sets=["dem.walls[0].normal=[nan, 0.0, 1.0]"]),
+    Bad("dem", "dem.walls[0].point", sets=["dem.walls[0].point=[0.0, 0.0, inf]"]),
+    Bad("dem", "dem.walls[0].type", sets=['dem.walls[0].type="sphere"']),
+    Bad("dem", "not used here", sets=['dem.walls[0].file="floor.stl"']),
+    Bad("dem", "dem.walls[0].velocity", sets=["dem.walls[0].velocity=[0.0, 0.0, nan]"]),
+    Bad("dem", "file not found", append='[[dem.walls]]\ntype = "facets"\nfile = "none.stl"\nmaterial = "sand"\n'),
+    Bad("dem", "could not read the triangle mesh", files={"junk.stl": b"solid x\nthis is not an stl\n"},
+        append='[[dem.walls]]\ntype = "facets"\nfile = "junk.stl"\nmaterial = "sand"\n'),
+    Bad("dem", "not used here", files={"junk.stl": b""},
+        append='[[dem.walls]]\ntype = "facets"\nfile = "junk.stl"\npoint = [0.0, 0.0, 0.0]\nmaterial = "sand"\n'),
+    Bad("dem", "does not use [specimen]", sets=["specimen.void_ratio=0.7"]),
+    Bad("dem", "does not use [fe]", sets=['fe.mesh="block.geo"']),
+    Bad("dem", "does not use [coupling]", sets=['coupling.material="sand"']),
+    Bad("dem", "--set needs the form", sets=["dem.local_damping"]),
+    Bad("dem", "--set needs section.key", sets=["dem..x=1"]),
+    Bad("dem", "is a value, not a table", sets=["dem.local_damping.x=1"]),
+    # ---------------------------------------------------------------- packing files (dem)
+    Bad("dem", "file not found", edit=DEM_FILE),
+    Bad("dem", "allowed formats", edit=DEM_FILE + (("bed.txt", "bed.csv"),), files={"bed.csv": b"1,2,3,4\n"}),
+    Bad("dem", "NaN or infinite", edit=DEM_FILE, files={"bed.txt": text_packing(PACKING_OK + ["0.01 nan 0.02 0.001"])},
+        label="packing with a NaN coordinate"),
+    Bad("dem", "sphere 2", edit=DEM_FILE,
+        files={"bed.txt": text_packing(["0.01 0.01 0.01 0.001", "0.01 0.02 0.01 inf"])},
+        label="packing with an infinite radius"),
+    Bad("dem", "no spheres", edit=DEM_FILE, files={"bed.txt": b"# x y z r\n"}, label="empty packing"),
+    Bad("dem", "4 columns", edit=DEM_FILE, files={"bed.txt": text_packing(["0.01 0.01 0.01"] * 3)}),
+    Bad("dem", "sphere 2 has 3 numbers", edit=DEM_FILE,
+        files={"bed.txt": text_packing(["0.01 0.01 0.01 0.001", "0.02 0.01 0.01"])}, label="ragged packing"),
+    Bad("dem", "not a row of numbers", edit=DEM_FILE,
+        files={"bed.txt": text_packing(["0.01 0.01 0.01 0.001", "x y z r"])}),
+    Bad("dem", "radius <= 0", edit=DEM_FILE, files={"bed.txt": text_packing(["0.01 0.01 0.01 -0.001"])}),
+    Bad("dem", "not UTF-8", edit=DEM_FILE, files={"bed.txt": b"0.01 0.01 0.01 0.001 \xff\xfe\n"}),
+    Bad("dem", "'positions' must be (n, 3)", edit=DEM_FILE + (("bed.txt", "bed.npz"),),
+        files={"bed.npz": npz(positions=np.zeros((5, 3)), radii=np.full(4, 1e-3))}, label="npz lengths differ"),
+    Bad("dem", "no array 'radii'", edit=DEM_FILE + (("bed.txt", "bed.npz"),),
+        files={"bed.npz": npz(positions=np.zeros((5, 3)))}),
+    Bad("dem", "could not read the packing", edit=DEM_FILE + (("bed.txt", "bed.npz"),),
+        files={"bed.npz": b"not a zip file"}),
+    Bad("dem", "not used here", edit=DEM_FILE[:1], files={"bed.txt": text_packing(PACKING_OK)},
+        label="file packing with count/box/radius"),
+    # ---------------------------------------------------------------- --out
+    Bad("dem", "is a file", files={"taken": b"x"}, out="taken"),
+    Bad("dem", "lies under", files={"taken": b"x"}, out="taken/run"),
+    Bad("dem", "cannot write", out="/proc/cosim-out"),
+    # ---------------------------------------------------------------- fe
+    Bad("fe", "mesh not found", sets=['fe.mesh="nope.geo"']),
+    Bad("fe", "allowed formats", sets=['fe.mesh="shape.step"'], files={"shape.step": b"x"}),
+    Bad("fe", "fe.mesh_size", sets=["fe.mesh_size=0.0"]),
+    Bad("fe", "fe.mesh_size", sets=["fe.mesh_size=nan"]),
+    Bad("fe", "fe.materials[0].E", sets=["fe.materials[0].E=inf"]),
+    Bad("fe", "fe.materials[0].nu", sets=["fe.materials[0].nu=0.5"]),
+    Bad("fe", "fe.materials[1].rho", sets=["fe.materials[1].rho=-1.0"]),
+    Bad("fe", "not a volume physical group", sets=['fe.materials[0].group="rock"']),
+    Bad("fe", "not a surface physical group", sets=['fe.boundary_conditions[0].boundary="floor"']),
+    Bad("fe", "fe.boundary_conditions[0].components", sets=["fe.boundary_conditions[0].components=[3]"]),
+    Bad("fe", "needs velocity", sets=['fe.boundary_conditions[0].type="velocity"']),
+    Bad("fe", "not used here", sets=["fe.boundary_conditions[0].velocity=[1.0, 0.0, 0.0]"]),
+    Bad("fe", "fe.loads[0].pressure", sets=["fe.loads[0].pressure=nan"]),
+    Bad("fe", "fe.loads[0].pressure", sets=["fe.loads[0].pressure=inf"]),
+    Bad("fe", "not used here", sets=["fe.loads[0].traction=[0.0, 0.0, 1.0]"]),
+    Bad("fe", "not a surface physical group", sets=['fe.loads[0].boundary="nowhere"']),
+    Bad("fe", "needs traction", edit=(('type = "pressure"', 'type = "traction"'), ("pressure = 100.0e3", "")),
+        label="traction load without its vector"),
+    Bad("fe", "fe.loads[0].ramp", sets=["fe.loads[0].ramp=0.0"]),
+    Bad("fe", "local non-viscous damping", sets=["fe.damping.alpha=1.0"]),
+    Bad("fe", "fe.damping.type", sets=['fe.damping.type="rayleigh"']),
+    Bad("fe", "unstable above", sets=["fe.alpha_tau=100.0"]),
+    Bad("fe", "fe.formulation", sets=['fe.formulation="quadratic"']),
+    Bad("fe", "defines no such parameter", sets=["fe.geometry_parameters.Q=1.0"]),
+    Bad("fe", "fe.geometry_parameters", sets=["fe.geometry_parameters.B=nan"]),
+    Bad("fe", "not a surface physical group", sets=['fe.reactions=["top_of_world"]']),
+    Bad("fe", "not used here", sets=["output.vtk=false"]),
+    Bad("fe", "does not use [dem]", sets=["dem.gravity=[0.0, 0.0, -9.81]"]),
+    Bad("fe", "not used here", sets=['fe.mesh="m.msh"', "fe.mesh_size=0.1"], files={"m.msh": b"x"}),
+    Bad("fe", "critical step", sets=["time.dt=1.0"]),
+    Bad("fe", "names no physical groups", sets=['fe.mesh="junk.msh"'],
+        files={"junk.msh": b"$MeshFormat\ngarbage\n"}, edit=(("mesh_size = 0.2", ""),), label="garbage .msh"),
+    Bad("fe", "not a gmsh .msh file", sets=['fe.mesh="junk.msh"'], files={"junk.msh": b"\x00\x01binary"},
+        edit=(("mesh_size = 0.2", ""),), label="binary junk as .msh"),
+    Bad("fe", "cannot be meshed", sets=['fe.mesh="junk.msh"'], edit=(("mesh_size = 0.2", ""),),
+        files={"junk.msh": b'$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n5\n3 1 "soil"\n3 2 "footing"\n'
+                           b'2 3 "soil_bottom"\n2 4 "soil_sides"\n2 5 "footing_top"\n$EndPhysicalNames\n'
+                           b'$Nodes\nbroken\n'},
+        label=".msh with names but broken nodes"),
+    Bad("fe", "cannot be meshed", sets=['fe.mesh="broken.geo"'],
+        files={"broken.geo": b'Box(1) = {0, 0, 0, 1, 1;\nPhysical Volume("soil") = {1};\n'
+                             b'Physical Volume("footing") = {1};\nPhysical Surface("soil_bottom") = {1};\n'
+                             b'Physical Surface("soil_sides") = {2};\nPhysical Surface("footing_top") = {3};\n'},
+        label=".geo syntax error"),
+    Bad("fe", "cannot be meshed", sets=["fe.geometry_parameters.B=0.0", "fe.geometry_parameters.b=0.0"],
+        label=".geo parameters that leave no volume"),
+    # ---------------------------------------------------------------- direct_shear
+    Bad("shear", "smaller than box_length", sets=["direct_shear.sample_height=0.07"]),
+    Bad("shear", "smaller than box_length", sets=["direct_shear.shear_distance=0.07"]),
+    Bad("shear", "smaller than shear_distance", sets=["direct_shear.ramp_distance=0.01"]),
+    Bad("shear", "direct_shear.normal_stress", sets=["direct_shear.normal_stress=inf"]),
+    Bad("shear", "must be one of the materials", sets=['direct_shear.sand_material="clay"']),
+    Bad("shear", "give only time.dt", sets=["time.duration=1.0"]),
+    Bad("shear", "specimen.void_ratio", sets=["specimen.void_ratio=2.0"]),
+    Bad("shear", "allowed presets", sets=['specimen.sieve="beach"']),
+    Bad("shear", "give both or neither", sets=["specimen.sieve_diameters=[0.001, 0.002]"]),
+    Bad("shear", "below half the sample height", sets=["direct_shear.sample_height=0.01"]),
+    Bad("shear", "not used here", sets=["output.interval=0.1"]),
+    Bad("shear", "remove [dem.particles]",
+        append='[dem.particles]\nsource = "cloud"\ncount = 1\nbox = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]\n'
+               'radius = [0.1, 0.1]\nmaterial = "sand"\n'),
+    Bad("shear", "does not use [fe]", sets=['fe.mesh="block.geo"']),
+    Bad("shear", "direct_shear.rows", sets=["direct_shear.rows=5"]),
+    Bad("shear", "critical step", sets=["time.dt=1.0"]),
+    Bad("shear", "file not found", cut="[specimen]", append=SPECIMEN_FILE, edit=NO_HEIGHT),
+    Bad("shear", "not used here", edit=SHEAR_FILE + NO_HEIGHT, files={"specimen.npz": npz(
+        positions=np.zeros((1, 3)) + 0.01, radii=np.full(1, 1e-3))}, label="file specimen with generation keys"),
+    Bad("shear", "the height is the packing's", cut="[specimen]", append=SPECIMEN_FILE,
+        files={"specimen.npz": npz(positions=np.zeros((1, 3)) + 0.01, radii=np.full(1, 1e-3))},
+        label="file specimen with sample_height"),
+    Bad("shear", "inside the 0.06 m x 0.06 m box", cut="[specimen]", append=SPECIMEN_FILE, edit=NO_HEIGHT,
+        files={"specimen.npz": npz(positions=np.array([[0.07, 0.01, 0.01]]), radii=np.full(1, 1e-3))}),
+    Bad("shear", "NaN or infinite", cut="[specimen]", append=SPECIMEN_FILE, edit=NO_HEIGHT,
+        files={"specimen.npz": npz(positions=np.array([[0.01, np.nan, 0.01]]), radii=np.full(1, 1e-3))}),
+    # ---------------------------------------------------------------- coupled
+    Bad("coupled", "not used here", sets=["time.dt=1e-6"], label="time.dt in a coupled case"),
+    Bad("coupled", "not used here", sets=["output.checkpoint_interval=100.0"]),
+    Bad("coupled", "not a surface physical group", sets=['coupling.interface=["nowhere"]']),
+    Bad("coupled", "must be one of the materials", sets=['coupling.material="steel"']),
+    Bad("coupled", "coupling.subcycles", sets=["coupling.subcycles=0"]),
+    Bad("coupled", "needs a [coupling] section", cut="[coupling]", label="no [coupling]"),
+    Bad("coupled", "file not found", sets=['dem.particles.file="missing.npz"']),
+    Bad("coupled", "does not use [specimen]", sets=["specimen.scale=2.0"]),
+    Bad("coupled", "fe.materials[0].E", sets=["fe.materials[0].E=nan"]),
+]
+
+
+def write_case(bad, folder):
+    text = (RUNS / BASES[bad.base]).read_text()
+    for old, new in bad.edit:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    if bad.cut:
+        start = text.index(bad.cut)
+        end = text.find("\n[", start + 1)
+        text = text[:start] + (text[end + 1:] if end >= 0 else "")
+    text += bad.append
+    path = folder / "case.toml"
+    path.write_bytes(bad.raw if bad.raw is not None else text.encode())
+    for name, content in bad.files.items():
+        if callable(content):
+            content(folder / name)
+        else:
+            (folder / name).write_bytes(content)
+    return path
+
+
+@pytest.fixture
+def folder(tmp_path):
+    shutil.copytree(RUNS / "packings", tmp_path / "packings")
+    return tmp_path
+
+
+def test_the_corpus_is_large_and_covers_every_kind():
+    assert len(CORPUS) >= 100
+    assert {bad.base for bad in CORPUS} == set(BASES)
+
+
+@pytest.mark.parametrize("bad", CORPUS, ids=str)
+def test_bad_input_is_refused_by_check_and_run_alike(bad, folder, capsys):
+    case = write_case(bad, folder)
+    sets = [arg for s in bad.sets for arg in ("--set", s)]
+    out = ["--out", str(folder / bad.out) if not bad.out.startswith("/") else bad.out] if bad.out else []
+    messages = []
+    for command in ("check", "run"):
+        target = out or (["--out", str(folder / "out")] if command == "run" else [])
+        code = main([command, str(case), *sets, *target])
+        captured = capsys.readouterr()
+        lines = [line for line in captured.err.splitlines() if line.startswith("cosim: error:")]
+        assert code == 2, f"{command}: exit {code}\n{captured.out}\n{captured.err}"
+        assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+        assert bad.fragment in lines[0], lines[0]
+        messages.append(lines[0])
+    assert messages[0] == messages[1]
+    assert not (folder / "out").exists()       # a refused run writes nothing

@@ -1,0 +1,139 @@
+"""Every case kind under ``mpirun -n 2`` ends, whatever happens: a short run of each kind
+exits 0; bad input exits 2 on every rank with one message; a run that diverges, or a
+failure on one rank only, ends all ranks within seconds with the cause printed once.
+
+Each command runs under a timeout far above its normal time: a hang fails the test
+instead of stalling the suite. (The DEM itself still runs on rank 0; the DEM-under-MPI
+work distributes it.)
+"""
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parents[2]
+COSIM = Path(sys.executable).parent / "cosim"
+RUNS = ROOT / "runs"
+ENV = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+       "OMPI_MCA_rmaps_base_oversubscribe": "1", "NUMBA_NUM_THREADS": "1"}
+TIMEOUT = 240  # s; each run below takes 5-40 s
+
+
+def mpirun(*args, n=2, program=(str(COSIM),)):
+    """(exit code, stdout, stderr, wall seconds) of ``mpirun -n N program args``."""
+    t0 = time.perf_counter()
+    done = subprocess.run(["mpirun", "-n", str(n), *program, *args], capture_output=True, text=True, env=ENV,
+                          cwd=ROOT, timeout=TIMEOUT)
+    return done.returncode, done.stdout, done.stderr, time.perf_counter() - t0
+
+
+SHORT_RUNS = {
+    "dem": [str(RUNS / "demo_dem_settling.toml"), "--set", "time.duration=0.004", "--set", "output.interval=0.002",
+            "--set", "dem.particles.count=500"],
+    "fe": [str(RUNS / "fe_footing.toml"), "--set", "time.duration=0.004", "--set", "output.interval=0.002"],
+    "coupled": [str(RUNS / "coupled_footing_on_sand.toml"), "--set", "time.duration=0.0004",
+                "--set", "output.interval=0.0002"],
+}
+
+MINI_SHEAR = textwrap.dedent("""
+    [case]
+    name = "mini_shear_mpi"
+    kind = "direct_shear"
+    seed = 3
+    [time]
+    safety_factor = 0.3
+    [output]
+    vtk = false
+    [dem]
+    local_damping = 0.3
+    [[dem.materials]]
+    name = "sand"
+    density = 2650.0
+    young = 5.0e7
+    [[dem.materials]]
+    name = "side_wall"
+    density = 7480.0
+    young = 5.0e7
+    friction = 0.0
+    [[dem.materials]]
+    name = "plate"
+    density = 7480.0
+    young = 5.0e7
+    friction = 0.8
+    [specimen]
+    sieve_diameters = [2.0e-3, 2.4e-3]
+    sieve_passing = [0.0, 1.0]
+    void_ratio = 0.75
+    tolerance = 0.1
+    [direct_shear]
+    box_length = 0.014
+    sample_height = 0.007
+    shear_distance = 2e-4
+    ramp_distance = 5e-5
+    inertial_number = 5e-3
+    rows = 10
+    """)
+
+
+@pytest.mark.parametrize("kind", sorted(SHORT_RUNS) + ["direct_shear"])
+def test_every_kind_runs_under_mpirun(kind, tmp_path):
+    if kind == "direct_shear":
+        case = tmp_path / "mini.toml"
+        case.write_text(MINI_SHEAR)
+        args = [str(case)]
+    else:
+        args = SHORT_RUNS[kind]
+    code, out, err, _ = mpirun("run", *args, "--out", str(tmp_path / "out"))
+    assert code == 0, out[-3000:] + err[-3000:]
+    assert out.count("outputs: ") == 1           # rank 0 speaks, once
+    assert (tmp_path / "out" / "run_info.json").exists()
+
+
+def test_bad_input_ends_every_rank_with_one_message(tmp_path):
+    code, out, err, _ = mpirun("run", str(RUNS / "demo_dem_settling.toml"), "--set", "time.dt=1.0",
+                               "--out", str(tmp_path / "out"))
+    assert code == 2, out + err
+    assert err.count("cosim: error:") == 1 and "critical step" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_error_on_one_rank_ends_all_ranks(tmp_path):
+    """Rank 1 alone fails while rank 0 runs the DEM: MPI_Abort ends both, at once."""
+    script = textwrap.dedent(f"""
+        import sys
+        from mpi4py import MPI
+        import cosim.apps.dem as dem
+        if MPI.COMM_WORLD.rank == 1:
+            def broken(*args, **kwargs):
+                raise OSError("disk full (a failure on rank 1 only)")
+            dem.write_run_metadata = broken
+        from cosim.cli import main
+        sys.exit(main(["run", "{RUNS / 'demo_dem_settling.toml'}", "--set", "time.duration=10.0",
+                       "--out", "{tmp_path / 'out'}"]))
+        """)
+    code, out, err, wall = mpirun(program=(sys.executable, "-c", script))
+    assert code != 0
+    assert err.count("disk full (a failure on rank 1 only)") >= 1 and "rank 1 of 2 failed" in err
+    assert wall < 60            # the other rank did not run its 10 s of simulated time
+
+
+@pytest.mark.parametrize("kind, sets, cause", [
+    ("dem", ["--set", "dem.gravity=[0.0, 0.0, -1e300]"], "the run has diverged"),
+    ("coupled", ["--set", "dem.gravity=[0.0, 0.0, -1e300]"], "the run has diverged"),
+])
+def test_a_diverging_run_ends_every_rank_with_its_cause(kind, sets, cause, tmp_path):
+    """A body force so large that the grains' state overflows: rank 0, where the DEM runs,
+    finds it at the next neighbour build, prints the cause, and MPI_Abort ends both ranks
+    (in the coupled case rank 1 is inside the FE step's collectives): exit 1, the cause
+    printed once, within seconds, and the rows written so far kept."""
+    out = tmp_path / "out"
+    code, stdout, err, wall = mpirun("run", *SHORT_RUNS[kind], *sets, "--out", str(out))
+    assert code == 1, stdout[-2000:] + err[-3000:]
+    assert err.count(cause) == 1 and err.count("cosim: run failed") == 1, err
+    assert "Traceback" not in err
+    assert wall < 120
+    assert (out / "series.csv").exists()
