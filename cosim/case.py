@@ -513,6 +513,9 @@ _UNUSED = [
     ("specimen", ("file",), lambda c, s: s.source == "generate", "source = 'generate' reads no file"),
     ("specimen", tuple(n for n in SpecimenSection.model_fields if n not in ("source", "file")),
      lambda c, s: s.source == "file", "source = 'file' takes the specimen as it is from the file"),
+    ("specimen", ("layers", "undercompaction", "friction_reduction", "hold_friction"),
+     lambda c, s: s.source == "generate" and s.method == "radius_expansion",
+     "method = 'radius_expansion' grows the radii of one cloud in the closed box: no layers, no compaction plate"),
     ("direct_shear", ("sample_height",), lambda c, s: c.specimen is not None and c.specimen.source == "file",
      "with specimen.source = 'file' the height is the packing's (the stored plate height of a .npz "
      "written by this app, else the top of the highest grain)"),

@@ -235,6 +235,7 @@ CORPUS = [
     Bad("shear", "give both or neither", sets=["specimen.sieve_diameters=[0.001, 0.002]"]),
     Bad("shear", "below half the sample height", sets=["direct_shear.sample_height=0.01"]),
     Bad("shear", "not used here", sets=["output.interval=0.1"]),
+    Bad("shear", "no layers, no compaction plate", sets=['specimen.method="radius_expansion"', "specimen.layers=3"]),
     Bad("shear", "remove [dem.particles]",
         append='[dem.particles]\nsource = "cloud"\ncount = 1\nbox = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]\n'
                'radius = [0.1, 0.1]\nmaterial = "sand"\n'),
