@@ -148,14 +148,12 @@ def write_dump(path, pos, radius, L, timestep=SETTLE_STEPS):
 
 
 def load_dump(path):
-    """LIGGGHTS dump (9 header lines, an ``ITEM: ATOMS`` line naming ``id radius x y z``) → (pos, radius, L)."""
-    lines = Path(path).read_text().split("\n")
-    L = float(lines[5].split()[1])
-    cols = lines[8].split()[2:]
-    data = np.loadtxt(lines[9:], ndmin=2)
-    data = data[np.argsort(data[:, cols.index("id")], kind="stable")]
-    pos = data[:, [cols.index("x"), cols.index("y"), cols.index("z")]].copy()
-    return pos, data[:, cols.index("radius")].copy(), L
+    """(pos, radius, L) of a bed dump: the spheres as any packing file
+    (``de_domain.packing.load_packing``), L from the dump's x box bounds."""
+    from de_domain.packing import load_packing
+    pos, radius = load_packing(path)
+    L = float(Path(path).read_text().split("\n", 6)[5].split()[1])
+    return pos, radius, L
 
 
 def shown(path):
