@@ -7,6 +7,7 @@ file for NaN/inf values, lengths and initial overlaps.
 """
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -31,6 +32,7 @@ PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint
 
 MAX_STEPS = 10**9  # a longer run is a typo (a duration in ms written in s), not a plan
 OVERLAP_WARNING = 0.05  # initial overlaps above this fraction of the smaller radius are reported
+ENERGY_WARNING = 0.05  # an energy balance residual above this fraction of work + dissipation is reported
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -227,4 +229,8 @@ def _run_root(case, engine, out_dir, resume):
     say(f"[{case.case.name}] done: t = {engine.time:.4e} s, kinetic energy {e['kinetic']:.3e} J, "
         f"energy balance residual {e['residual']:.3e} J "
         f"({100 * abs(e['residual']) / scale:.2f} % of work + dissipation)")
+    if abs(e["residual"]) > ENERGY_WARNING * scale:
+        say(f"cosim: warning: [{case.case.name}] the energy balance is off by {100 * abs(e['residual']) / scale:.0f} % "
+            "of work + dissipation (docs/design.md §2.15): the time step is likely too large for these contacts; "
+            "try a smaller time.dt or time.safety_factor", file=sys.stderr)
 
