@@ -78,3 +78,18 @@ def test_two_ranks_give_the_one_rank_history(tmp_path):
     assert one.shape == two.shape
     # reactions and displacements agree to the CSV's 10 significant digits (round-off of sums)
     np.testing.assert_allclose(two, one, rtol=1e-8, atol=1e-8 * np.abs(one).max())
+
+
+def test_a_state_that_stops_being_finite_ends_the_run(tmp_path):
+    """The check every output of an ``fe`` or ``coupled`` run makes, on all ranks together:
+    one NaN in the velocity is a RunFailed naming the step (exit 1, the outputs so far kept)."""
+    from cosim.apps import fe as fe_app
+    from cosim.case import load_case
+    from cosim.errors import RunFailed
+    path = block_case(tmp_path)
+    case, _ = load_case(path)
+    solver = fe_app.build_solid(case, path)
+    fe_app.check_finite(solver)
+    solver.velocity[0, 2] = np.nan
+    with pytest.raises(RunFailed, match="not finite at step 0"):
+        fe_app.check_finite(solver)
