@@ -6,6 +6,7 @@ Each command runs under a timeout far above its normal time: a hang fails the te
 instead of stalling the suite. (The DEM itself still runs on rank 0; the DEM-under-MPI
 work distributes it.)
 """
+import importlib.util
 import os
 import subprocess
 import sys
@@ -39,52 +40,25 @@ SHORT_RUNS = {
                 "--set", "output.interval=0.0002"],
 }
 
-MINI_SHEAR = textwrap.dedent("""
-    [case]
-    name = "mini_shear_mpi"
-    kind = "direct_shear"
-    seed = 3
-    [time]
-    safety_factor = 0.3
-    [output]
-    vtk = false
-    [dem]
-    local_damping = 0.3
-    [[dem.materials]]
-    name = "sand"
-    density = 2650.0
-    young = 5.0e7
-    [[dem.materials]]
-    name = "side_wall"
-    density = 7480.0
-    young = 5.0e7
-    friction = 0.0
-    [[dem.materials]]
-    name = "plate"
-    density = 7480.0
-    young = 5.0e7
-    friction = 0.8
-    [specimen]
-    sieve_diameters = [2.0e-3, 2.4e-3]
-    sieve_passing = [0.0, 1.0]
-    void_ratio = 0.75
-    tolerance = 0.1
-    [direct_shear]
-    box_length = 0.014
-    sample_height = 0.007
-    shear_distance = 2e-4
-    ramp_distance = 5e-5
-    inertial_number = 5e-3
-    rows = 10
-    """)
+def mini_shear():
+    """The miniature direct shear case of tests/shear/test_direct_shear_run.py (~600 grains),
+    sheared 0.2 mm only."""
+    spec = importlib.util.spec_from_file_location("mini", ROOT / "tests" / "shear" / "test_direct_shear_run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.MINI.format(name="mini_shear_mpi", e=0.70, mu=0.3)
+
+
+SHORT_SHEAR = ["--set", "direct_shear.shear_distance=2e-4", "--set", "direct_shear.ramp_distance=5e-5",
+               "--set", "direct_shear.rows=10"]
 
 
 @pytest.mark.parametrize("kind", sorted(SHORT_RUNS) + ["direct_shear"])
 def test_every_kind_runs_under_mpirun(kind, tmp_path):
     if kind == "direct_shear":
         case = tmp_path / "mini.toml"
-        case.write_text(MINI_SHEAR)
-        args = [str(case)]
+        case.write_text(mini_shear())
+        args = [str(case), *SHORT_SHEAR]
     else:
         args = SHORT_RUNS[kind]
     code, out, err, _ = mpirun("run", *args, "--out", str(tmp_path / "out"))
