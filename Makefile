@@ -15,7 +15,7 @@ STAMP        := $(VENV)/.setup-done
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
-MPIRUN       := mpirun --oversubscribe
+MPIRUN       := mpirun --oversubscribe --bind-to none  # unbound: Numba threads may use both cores
 DEMO_CASE    ?= runs/coupled_footing_on_sand.toml
 
 .PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers clean
@@ -55,7 +55,9 @@ lab-series: setup
 test: setup
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -m "not slow and not mpi" -q --color=no
-	$(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q --color=no -p no:cacheprovider
+	timeout 1200 $(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q --color=no -p no:cacheprovider
+	timeout 600 $(MPIRUN) -n 3 $(PY) -m pytest -m "mpi and not slow" -q --color=no -p no:cacheprovider \
+	  tests/dem/test_distributed.py
 
 test-slow: setup
 	$(PY) -m pytest -m slow -q --color=no

@@ -22,7 +22,7 @@ import numpy as np
 from . import fused
 from .contact_laws import HERTZ, LAWS
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
-from .neighbors import NeighborList
+from .neighbors import ContactRecords, NeighborList
 from .particles import ARRAY_FIELDS, Particles
 from .state import (
     BOOK_ACCUMULATED,
@@ -52,17 +52,30 @@ DISSIPATION_TERMS = ("friction", "contact_damping", "background_damping")
 WORK_TERMS = ("work_walls", "work_boundary")
 
 
+def _distributed():
+    """de_domain.distributed, imported on first use (it imports mpi4py, which starts MPI)."""
+    from . import distributed
+
+    return distributed
+
+
 class Engine:
     """Spheres + plane walls + facet meshes, advanced by :meth:`step` (see module docstring).
 
     ``dt=None`` takes ``safety_factor × critical_timestep()``. ``skin`` defaults to
     0.2 × the mean radius. ``local_damping`` α_b and ``viscous_damping`` α_v [1/s]
     are the background damping of docs/design.md §2.13.
+
+    ``comm`` (an mpi4py communicator): the particles are spread over its ranks
+    (:mod:`de_domain.distributed`; every rank passes the same global ``particles``,
+    walls and facets). ``particles`` then holds this rank's owned particles and
+    ghosts in ascending global id (``domain.ids``); :meth:`global_particles` gathers
+    them. Results are bit-identical for any number of ranks.
     """
 
     def __init__(self, particles: Particles, materials, walls=(), facets=(), contact_law="linear",
                  gravity=(0.0, 0.0, -9.81), dt=None, safety_factor=0.3, local_damping=0.0,
-                 viscous_damping=0.0, skin=None):
+                 viscous_damping=0.0, skin=None, comm=None):
         if contact_law not in LAWS:
             raise ValueError(f"Engine: contact_law = {contact_law!r}; allowed: {sorted(LAWS)}")
         if not 0.0 < safety_factor <= 1.0:
@@ -107,6 +120,10 @@ class Engine:
         self.acceleration = np.zeros((n, 3))  # last step's (v^{n+½} − v^{n−½})/Δt, for the dashpot
         self._allocate_pair_arrays(0)
         self._energy_reset()
+        self.domain = None
+        self._pending_records = None  # contact history from a checkpoint, for the first list build
+        if comm is not None:
+            _distributed().distribute(self, particles, comm)
 
     def set_materials(self, materials):
         """Replace the contact parameters (friction, restitution, stiffness ratio, rolling
@@ -168,14 +185,17 @@ class Engine:
         """Δt_crit: linear law min √(m_i/k_n,i), k_n,i = 2 E r_i (a sphere against its
         equal); Hertz law the P-wave estimate min r √(ρ/E) (docs/design.md §2.14)."""
         p = self.particles
-        if p.n == 0:
-            return math.inf
         E = self.young[p.material]
-        if self.law == HERTZ:
+        if p.n == 0:
+            local = math.inf
+        elif self.law == HERTZ:
             rho = self.density[p.material]
-            return float(np.min(p.radius * np.sqrt(rho / E)))
-        k = 2.0 * E * p.radius
-        return float(np.min(np.sqrt(p.mass / k)))
+            local = float(np.min(p.radius * np.sqrt(rho / E)))
+        else:
+            local = float(np.min(np.sqrt(p.mass / (2.0 * E * p.radius))))
+        if getattr(self, "domain", None) is not None:
+            return self.domain.comm.allreduce(local, op=_distributed().MPI.MIN)
+        return local
 
     # ------------------------------------------------------------------ the step
     def step(self):
@@ -185,6 +205,9 @@ class Engine:
     def run(self, nsteps):
         """Advance ``nsteps`` steps."""
         nsteps = int(nsteps)
+        if self.domain is not None:
+            _distributed().run(self, nsteps)
+            return
         done = 0
         while done < nsteps:
             self._book_boundary_jumps()
@@ -208,7 +231,9 @@ class Engine:
         if refresh or nl.needs_rebuild(p.pos, p.n, vertices, wp, wn):
             if refresh or nl.perm is None:
                 nl.perm_step = self.step_count
-            nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, p.n_owned, new_order=refresh)
+            nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, ghost=p.ghost,
+                     carried=self._pending_records, new_order=refresh)
+            self._pending_records = None
             self._allocate_pair_arrays(nl.pair_js.size)
 
     def _kernel_state(self, walls, facet_state, sorted_copies):
@@ -218,7 +243,7 @@ class Engine:
         nl = self.neighbors
         in_order = sorted_copies is not None
         settings = StepSettings(law=self.law, dt=self.dt, gravity=self.gravity, local_damping=self.local_damping,
-                                viscous_damping=self.viscous_damping, n_owned=int(p.n_owned),
+                                viscous_damping=self.viscous_damping,
                                 has_constraints=bool(p.blocked.any() or p.prescribed.any()), rolling=nl.rolling,
                                 in_order=in_order, skin=float(nl.skin))
         if in_order:
@@ -227,7 +252,7 @@ class Engine:
         else:
             particles = ParticleArrays(p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia,
                                        p.material, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
-                                       p.torque, nl.ref_pos)
+                                       p.torque, nl.ref_pos, p.ghost)
             perm = nl.perm
         pairs = PairList(perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_slot, nl.ht, nl.hr, self.j_rec,
                          self.pair_ov)
@@ -253,7 +278,7 @@ class Engine:
             constraints = (p.blocked, p.prescribed, p.prescribed_velocity)
         return ParticleArrays(p.pos[perm], p.vel[perm], self.acceleration[perm], p.angvel[perm], p.radius[perm],
                               p.mass[perm], p.inertia[perm], p.material[perm], *constraints,
-                              np.empty((p.n, 3)), np.empty((p.n, 3)), self.neighbors.ref_pos[perm])
+                              np.empty((p.n, 3)), np.empty((p.n, 3)), self.neighbors.ref_pos[perm], p.ghost[perm])
 
     def _advance(self, nsteps):
         """Fused steps until ``nsteps`` are done or the lists need a rebuild.
@@ -273,19 +298,44 @@ class Engine:
         fused.advance(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies), self._books,
                       clock)
         if copies is not None:
-            perm = self.neighbors.perm
-            p.pos[perm] = copies.pos
-            p.vel[perm] = copies.vel
-            self.acceleration[perm] = copies.accel
-            p.angvel[perm] = copies.angvel
-            p.force[perm] = copies.force
-            p.torque[perm] = copies.torque
+            self._write_back(copies)
         done = int(clock[CLOCK_STEPS])
         self.time = float(clock[CLOCK_TIME])
         self.step_count += done
         self._finish_walls(walls[0])
         self._finish_facets(vertices, impulse)
         return done
+
+    def _write_back(self, copies):
+        """Scatter the spatially sorted copies back to the public arrays."""
+        p = self.particles
+        perm = self.neighbors.perm
+        p.pos[perm] = copies.pos
+        p.vel[perm] = copies.vel
+        self.acceleration[perm] = copies.accel
+        p.angvel[perm] = copies.angvel
+        p.force[perm] = copies.force
+        p.torque[perm] = copies.torque
+
+    def _advance_copies(self, copies):
+        """One step on the sorted copies of a distributed run (the facet vertex forces
+        and impulses are summed over the ranks afterwards, by the caller). Returns
+        whether this rank's particles, walls or vertices call for a list rebuild."""
+        walls = self._wall_arrays()
+        clock = np.zeros(2)
+        clock[CLOCK_TIME] = self.time
+        vertices, vertex_vel = self._gather_facets()
+        facet_state = (vertices, vertex_vel, np.zeros_like(vertices))  # this rank's impulse: not used
+        due = fused.advance(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
+        self.time = float(clock[CLOCK_TIME])
+        self.step_count += 1
+        for w, wall in enumerate(self.walls):
+            wall.point = walls[0][w].copy()
+            self._wall_points_known[w] = wall.point.copy()
+        for k, mesh in enumerate(self.facets):
+            mesh.vertices[:] = vertices[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
+            self._facet_vertices_known[k] = mesh.vertices.copy()
+        return due
 
     def _finish_walls(self, wall_point):
         nl = self.neighbors
@@ -328,7 +378,8 @@ class Engine:
             if np.any(jump != 0.0):
                 work -= float(np.sum(mesh.vertex_force * jump))
                 self._facet_vertices_known[k] = mesh.vertices.copy()
-        self._jump_work += work
+        if self.domain is None or self.domain.comm.rank == 0:  # the walls are global: book once
+            self._jump_work += work
 
     # ------------------------------------------------------------------ energy
     def _energy_reset(self):
@@ -337,8 +388,9 @@ class Engine:
         self._books = np.zeros(N_BOOKS)
         self._jump_work = 0.0
 
-    def _book(self, offset, terms):
-        return {k: float(self._books[offset + m]) for m, k in enumerate(terms)}
+    @staticmethod
+    def _book(books, offset, terms):
+        return {k: float(books[offset + m]) for m, k in enumerate(terms)}
 
     def energy(self):
         """Energy balance at time tⁿ of the last step (docs/design.md §2.15).
@@ -347,31 +399,48 @@ class Engine:
         rolling), cumulative work in (walls/facets, prescribed DOFs) and dissipation
         (friction incl. released springs, contact damping, background damping),
         integrated with the trapezoidal rule over the recorded steps, and
-        ``residual = total − (initial_total + work − dissipated)``.
+        ``residual = total − (initial_total + work − dissipated)``. A distributed
+        engine sums the books of all ranks in rank order (collective).
         """
-        initialised = self._books[BOOK_INITIALISED] != 0.0
-        if not initialised:  # before the first step: current velocities, no contacts yet
+        books = self._books.copy()
+        if books[BOOK_INITIALISED] == 0.0:  # before the first step: current velocities, no contacts yet
             p = self.particles
-            n = p.n_owned
-            kinetic = (0.5 * np.sum(p.mass[:n, None] * p.vel[:n] ** 2),
-                       0.5 * np.sum(p.inertia[:n, None] * p.angvel[:n] ** 2),
-                       -np.sum(p.mass[:n] * (p.pos[:n] @ self.gravity)))
+            mine = p.owned
+            kinetic = (0.5 * np.sum(p.mass[mine, None] * p.vel[mine] ** 2),
+                       0.5 * np.sum(p.inertia[mine, None] * p.angvel[mine] ** 2),
+                       -np.sum(p.mass[mine] * (p.pos[mine] @ self.gravity)))
             for k, value in enumerate(kinetic):  # kinetic_translational, kinetic_rotational, gravity
-                self._books[BOOK_STATE + k] = float(value)
-        state = self._book(BOOK_STATE, STATE_TERMS)
-        acc = self._book(BOOK_ACCUMULATED, RATE_TERMS)
-        first = self._book(BOOK_FIRST, RATE_TERMS)
-        last = self._book(BOOK_LAST, RATE_TERMS)
+                books[BOOK_STATE + k] = float(value)
+        jump_work = self._jump_work
+        if self.domain is not None:
+            books = _distributed().reduce_books(self, books)
+            jump_work = self.domain.comm.bcast(jump_work)  # booked on rank 0 only
+        initialised = books[BOOK_INITIALISED] != 0.0
+        state = self._book(books, BOOK_STATE, STATE_TERMS)
+        acc = self._book(books, BOOK_ACCUMULATED, RATE_TERMS)
+        first = self._book(books, BOOK_FIRST, RATE_TERMS)
+        last = self._book(books, BOOK_LAST, RATE_TERMS)
         out = dict(state)
         out["kinetic"] = out["kinetic_translational"] + out["kinetic_rotational"]
         for k in RATE_TERMS:
             out[k] = acc[k] - 0.5 * (first[k] + last[k])
-        out["work_walls"] += self._jump_work
+        out["work_walls"] += jump_work
         out["total"] = sum(state.values())
-        out["initial_total"] = float(self._books[BOOK_INITIAL_TOTAL]) if initialised else out["total"]
+        out["initial_total"] = float(books[BOOK_INITIAL_TOTAL]) if initialised else out["total"]
         out["work"] = sum(out[k] for k in WORK_TERMS)
         out["dissipated"] = sum(out[k] for k in DISSIPATION_TERMS)
         out["residual"] = out["total"] - (out["initial_total"] + out["work"] - out["dissipated"])
+        return out
+
+    def global_particles(self):
+        """Every particle in global-id order: a serial engine's own ``particles``; a
+        distributed engine's owned rows of all ranks, gathered on every rank
+        (collective), with ``acceleration`` as an extra attribute."""
+        if self.domain is None:
+            return self.particles
+        rows = _distributed().gather_owned(self)
+        out = Particles.from_arrays(rows, rows["id"].size)
+        out.acceleration = rows["acceleration"]
         return out
 
     # ------------------------------------------------------------------ contacts
@@ -462,9 +531,20 @@ class Engine:
 
     # ------------------------------------------------------------------ checkpoint
     def save_checkpoint(self, path):
-        """Write the full state (particles, boundaries, contact history, energy books) as npz."""
-        data = {f"p_{k}": v for k, v in self.particles.arrays().items()}
-        data["n_owned"] = np.int64(self.particles.n_owned)
+        """Write the full state (particles, boundaries, contact history, energy books) as npz.
+
+        A distributed engine (collective) gathers everything in global-id order and
+        rank 0 writes one file, with the contact history as records keyed by global
+        ids: it resumes with any number of ranks, or none (:meth:`load_checkpoint`)."""
+        if self.domain is None:
+            particles, acceleration, books, jump = self.particles, self.acceleration, self._books, self._jump_work
+        else:
+            particles = self.global_particles()
+            acceleration = particles.acceleration
+            books = _distributed().reduce_books(self, self._books)
+            jump = self.domain.comm.bcast(self._jump_work)
+        data = {f"p_{k}": v for k, v in particles.arrays().items()}
+        data["n_owned"] = np.int64(particles.n_owned)
         for field in dataclasses.fields(Material):
             data[f"mat_{field.name}"] = np.array([getattr(m, field.name) for m in self.materials])
         for k in ("point", "normal", "velocity", "force"):
@@ -479,21 +559,33 @@ class Engine:
             data[f"facet{k}_material"] = np.int64(mesh.material)
             if mesh.source_nodes is not None:
                 data[f"facet{k}_source_nodes"] = mesh.source_nodes
-        for k, v in self.neighbors.state().items():
-            data[f"nl_{k}"] = v
-        for name in ("j_rec", "pair_ov", "facet_force", "facet_lambda", "gravity", "acceleration"):
-            data[name] = getattr(self, name)
+        if self.domain is None:
+            for k, v in self.neighbors.state().items():
+                data[f"nl_{k}"] = v
+            for name in ("j_rec", "pair_ov", "facet_force", "facet_lambda"):
+                data[name] = getattr(self, name)
+        else:
+            data["nl_skin"] = np.float64(self.neighbors.skin)
+            for k, v in _distributed().gather_records(self)._asdict().items():
+                data[f"records_{k}"] = v
+        data["gravity"] = self.gravity
+        data["acceleration"] = acceleration
         data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
                                    self.time])
         data["step_count"] = np.int64(self.step_count)
         data["contact_law"] = np.array(self.contact_law)
-        data["energy_books"] = self._books
-        data["energy_jump"] = np.array(self._jump_work)
-        np.savez(path, **data)
+        data["energy_books"] = books
+        data["energy_jump"] = np.array(jump)
+        if self.domain is None or self.domain.comm.rank == 0:
+            np.savez(path, **data)
+        if self.domain is not None:
+            self.domain.comm.Barrier()
 
     @classmethod
-    def load_checkpoint(cls, path):
-        """Rebuild an Engine from :meth:`save_checkpoint`; continuing is bit-identical."""
+    def load_checkpoint(cls, path, comm=None):
+        """Rebuild an Engine from :meth:`save_checkpoint` (with ``comm``: distributed,
+        over any number of ranks, from a serial or a distributed checkpoint);
+        continuing is bit-identical."""
         with np.load(path, allow_pickle=False) as f:
             d = {k: f[k] for k in f.files}
         particles = Particles.from_arrays({k: d[f"p_{k}"] for k in ARRAY_FIELDS}, int(d["n_owned"]))
@@ -517,16 +609,35 @@ class Engine:
         dt, safety, local, viscous, time = d["config"]
         engine = cls(particles, materials, walls, facets, contact_law=str(d["contact_law"]),
                      gravity=d["gravity"], dt=dt, safety_factor=safety, local_damping=local,
-                     viscous_damping=viscous, skin=float(d["nl_skin"]))
+                     viscous_damping=viscous, skin=float(d["nl_skin"]), comm=comm)
         engine._wall_points_known = [point.copy() for point in d["wall_point_known"]]
         engine._facet_vertices_known = [d[f"facet{k}_vertices_known"].copy() for k in range(len(facets))]
-        if "nl_perm" in d:
+        serial_lists = "nl_perm" in d
+        if serial_lists and comm is None:
             engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
-        engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)
-        for name in ("j_rec", "pair_ov", "facet_force", "facet_lambda", "acceleration"):
-            setattr(engine, name, d[name].copy())
+            engine.facet_active = np.zeros(engine.neighbors.f_tri.size, np.bool_)
+            for name in ("j_rec", "pair_ov", "facet_force", "facet_lambda"):
+                setattr(engine, name, d[name].copy())
+        elif serial_lists:  # a serial checkpoint resumed over ranks: its history as records
+            lists = NeighborList(float(d["nl_skin"]))
+            lists.rolling = engine.neighbors.rolling
+            lists.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})
+            engine._pending_records = lists.records()
+        elif "records_pair_keys" in d:
+            engine._pending_records = ContactRecords(**{k: d[f"records_{k}"] for k in ContactRecords._fields})
+        books = d["energy_books"].copy()
+        jump = float(d["energy_jump"])
+        if engine.domain is None:
+            engine.acceleration = d["acceleration"].copy()
+        else:
+            engine.acceleration = d["acceleration"][engine.domain.ids].copy()
+            if comm.rank != 0:  # the totals live on rank 0; the others start their sums from zero
+                flag = books[BOOK_INITIALISED]
+                books[:] = 0.0
+                books[BOOK_INITIALISED] = flag
+                jump = 0.0
         engine.time = float(time)
         engine.step_count = int(d["step_count"])
-        engine._books = d["energy_books"].copy()
-        engine._jump_work = float(d["energy_jump"])
+        engine._books = books
+        engine._jump_work = jump
         return engine

@@ -111,11 +111,13 @@ def _pair_block(b, settings, particles, params, pairs, e1):
     else it is identically zero and not stored). The i-side part of each particle's
     force/torque sum (ascending j) is written to ``particles.force``/``torque``;
     region 2 continues it with the j-side pairs. ``e1[b]``: the block's contact
-    energy terms (``state.E_*``)."""
+    energy terms (``state.E_*``) of the pairs whose i-side is owned (a pair between
+    ranks is computed on both, booked on one)."""
     law = settings.law
     dt = settings.dt
     in_order = settings.in_order
     rolling = settings.rolling
+    ghost = particles.ghost
     pos = particles.pos
     vel = particles.vel
     accel = particles.accel
@@ -145,6 +147,7 @@ def _pair_block(b, settings, particles, params, pairs, e1):
         i = np.uint64(s) if in_order else np.uint64(perm[s])
         ri = radius[i]
         mi = material[i]
+        counted = not ghost[i]  # a pair with a ghost i-side is booked on the rank owning i
         sfx = 0.0; sfy = 0.0; sfz = 0.0
         stx = 0.0; sty = 0.0; stz = 0.0
         for p in range(i_start[s], i_start[s + 1]):
@@ -171,8 +174,10 @@ def _pair_block(b, settings, particles, params, pairs, e1):
                         or mrx != 0.0 or mry != 0.0 or mrz != 0.0):
                     k_lin = linear_normal_stiffness(young[mi], ri, young[material[j]], rj)
                     r_red = ri * rj / (ri + rj)
-                    fr += released_energy(law, pair_params, mi, material[j], k_lin, r_red,
-                                          Springs(ht[p, 0], ht[p, 1], ht[p, 2], mrx, mry, mrz))
+                    released = released_energy(law, pair_params, mi, material[j], k_lin, r_red,
+                                               Springs(ht[p, 0], ht[p, 1], ht[p, 2], mrx, mry, mrz))
+                    if counted:
+                        fr += released
                     for k in range(3):
                         ht[p, k] = 0.0
                         if rolling:
@@ -234,12 +239,13 @@ def _pair_block(b, settings, particles, params, pairs, e1):
             stx += ai * cx + springs.mrx
             sty += ai * cy + springs.mry
             stz += ai * cz + springs.mrz
-            energy = res.energy
-            en += energy.normal
-            et += energy.tangential
-            er += energy.rolling
-            fr += energy.friction
-            dm += energy.damping
+            if counted:
+                energy = res.energy
+                en += energy.normal
+                et += energy.tangential
+                er += energy.rolling
+                fr += energy.friction
+                dm += energy.damping
         force[i, 0] = sfx; force[i, 1] = sfy; force[i, 2] = sfz
         torque[i, 0] = stx; torque[i, 1] = sty; torque[i, 2] = stz
     e1[b, E_NORMAL] = en
@@ -260,7 +266,7 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
     (``state.I_*``, from column ``N_WALL_ENERGY``); ``dmax[b]``: the largest squared
     displacement since the last list build (inf for a NaN)."""
     in_order = settings.in_order
-    n_owned = np.uint64(settings.n_owned)
+    ghost = particles.ghost
     pos = particles.pos
     force = particles.force
     torque = particles.torque
@@ -276,7 +282,7 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
     we = np.zeros(N_WALL_ENERGY)
     for s in range(first, last):
         i = np.uint64(s) if in_order else np.uint64(perm[s])
-        if i >= n_owned:
+        if ghost[i]:
             continue
         # the i-side sums of region 1, continued with the j-side records (ascending i);
         # a pair not in contact has a zero record
@@ -292,7 +298,7 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
         for s in range(first, last):
             i = np.uint64(s) if in_order else np.uint64(perm[s])
             k = particle_index[s]
-            if i >= n_owned or f_start[k + 1] == f_start[k]:
+            if ghost[i] or f_start[k + 1] == f_start[k]:
                 continue
             resultant = facet_contacts_of(i, k, settings, particles, params, meshes, candidates,
                                           (force[i, 0], force[i, 1], force[i, 2], torque[i, 0], torque[i, 1],
@@ -304,7 +310,7 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
     d2max = 0.0
     for s in range(first, last):
         i = np.uint64(s) if in_order else np.uint64(perm[s])
-        if i >= n_owned:
+        if ghost[i]:
             continue
         ex = pos[i, 0] - ref_pos[i, 0]
         ey = pos[i, 1] - ref_pos[i, 1]

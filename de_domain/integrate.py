@@ -64,11 +64,11 @@ def integrate_block(first, last, settings, particles, perm, terms):
     prescribed_velocity = particles.prescribed_velocity
     mass = particles.mass
     inertia = particles.inertia
-    n_owned = np.uint64(settings.n_owned)
+    ghost = particles.ghost
     ke_t, ke_r, potential, damping, boundary = terms
     for s in range(first, last):
         i = np.uint64(s) if settings.in_order else np.uint64(perm[s])
-        if i >= n_owned:
+        if ghost[i]:
             continue
         m = mass[i]
         inv = 1.0 / m

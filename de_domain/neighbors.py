@@ -14,6 +14,7 @@
   rebuild by matching sorted int64 pair keys (i·n + j, particle·n_tri + tri).
 """
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit, prange
@@ -21,6 +22,19 @@ from numba import njit, prange
 from .walls import point_triangle_distance2
 
 MAX_CELLS_PER_PARTICLE = 8
+
+ContactRecords = namedtuple("ContactRecords", [
+    "pair_keys", "pair_history",    # (m,) record_keys(id_i, id_j), id_i < id_j; (m, 6) spring, rolling moment
+    "wall_keys", "wall_history",    # (c,) record_keys(id, wall); (c, 10) spring, moment, normal force, force
+    "facet_keys", "facet_history",  # (c,) record_keys(id, triangle); (c, 6) spring, rolling moment
+])
+"""Contact history keyed by global particle ids: what survives a list rebuild, a
+migration to another rank and a checkpoint (:meth:`NeighborList.records`)."""
+
+
+def record_keys(first, second):
+    """int64 key of (global id, partner): ``first · 2³² + second`` (ids below 2³¹)."""
+    return (np.asarray(first, np.int64) << 32) | np.asarray(second, np.int64)
 
 
 @njit(cache=True, error_model="numpy")
@@ -36,9 +50,10 @@ def insertion_sort(a, start, stop):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, particle_cell, perm,
+def count_or_fill_pairs(pos, radius, ghost, skin, dims, cell_start, cell_particles, particle_cell, perm,
                         n_active, i_start, j_out, fill):
-    """Half list (partners j > i) of particle perm[s], per perm position s; sorted by j."""
+    """Half list (partners j > i) of particle perm[s], per perm position s; sorted by j.
+    A pair of two ghosts is left out (no owned particle needs it)."""
     for s in prange(n_active):
         i = perm[s]
         cz = particle_cell[i] % dims[2]
@@ -54,7 +69,7 @@ def count_or_fill_pairs(pos, radius, skin, dims, cell_start, cell_particles, par
                     c = (ax * dims[1] + ay) * dims[2] + az
                     for q in range(cell_start[c], cell_start[c + 1]):
                         j = cell_particles[q]
-                        if j <= i:
+                        if j <= i or (ghost[i] and ghost[j]):
                             continue
                         cut = radius[i] + radius[j] + skin
                         dx = pos[j, 0] - pos[i, 0]
@@ -112,7 +127,7 @@ def pair_i_of(perm, i_start):
 
 
 @njit(cache=True, error_model="numpy")
-def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, wall_normal):
+def build_wall_candidates(pos, radius, skin, perm, iperm, ghost, wall_point, wall_normal):
     """Plane walls within r + skin of each owned particle (CSR over perm positions),
     and the candidates in ascending particle order (for the wall-force totals)."""
     n = perm.size
@@ -121,7 +136,7 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
     for s in range(n):
         i = perm[s]
         c = 0
-        if i < n_owned:
+        if not ghost[i]:
             for w in range(nw):
                 dist = 0.0
                 for d in range(3):
@@ -133,7 +148,7 @@ def build_wall_candidates(pos, radius, skin, perm, iperm, n_owned, wall_point, w
     for s in range(n):
         i = perm[s]
         c = w_start[s]
-        if i < n_owned:
+        if not ghost[i]:
             for w in range(nw):
                 dist = 0.0
                 for d in range(3):
@@ -242,11 +257,15 @@ def _triangles_per_cell(vertices, triangles, reach, lo, cell_size, dims):
 
 
 @njit(parallel=True, cache=True)
-def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell, start, cell_tris,
+def _count_or_fill_facets(pos, radius, ghost, skin, vertices, triangles, particle_cell, start, cell_tris,
                           n_active, f_start, f_out, fill):
     for i in prange(n_active):
         c = particle_cell[i]
         count = 0
+        if ghost[i]:
+            if not fill:
+                f_start[i + 1] = 0
+            continue
         cut = radius[i] + skin
         for s in range(start[c], start[c + 1]):
             t = cell_tris[s]
@@ -262,18 +281,18 @@ def _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell,
             insertion_sort(f_out, f_start[i], f_start[i] + count)
 
 
-def build_facet_list(pos, radius, n_active, skin, vertices, triangles, grid):
+def build_facet_list(pos, radius, ghost, n_active, skin, vertices, triangles, grid):
     """Sphere–triangle candidates within r + skin, grouped by particle (CSR)."""
     lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
     r_max = float(radius[:n_active].max())
     start, cell_tris = _triangles_per_cell(vertices, triangles, r_max + skin, lo, cell_size, dims)
     f_start = np.zeros(n_active + 1, dtype=np.int64)
     dummy = np.empty(0, dtype=np.int32)
-    _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell, start, cell_tris,
+    _count_or_fill_facets(pos, radius, ghost, skin, vertices, triangles, particle_cell, start, cell_tris,
                           n_active, f_start, dummy, False)
     f_start = np.cumsum(f_start)
     f_tri = np.empty(f_start[-1], dtype=np.int32)
-    _count_or_fill_facets(pos, radius, skin, vertices, triangles, particle_cell, start, cell_tris,
+    _count_or_fill_facets(pos, radius, ghost, skin, vertices, triangles, particle_cell, start, cell_tris,
                           n_active, f_start, f_tri, True)
     return f_start, f_tri
 
@@ -342,6 +361,7 @@ class NeighborList:
         self.ref_wall_point = np.zeros((0, 3))
         self.ref_wall_normal = np.zeros((0, 3))
         self.n_builds = 0
+        self.ids = np.empty(0, np.int64)  # global id of each particle at the last build
 
     @property
     def pair_i(self):
@@ -384,52 +404,58 @@ class NeighborList:
         return dp + max(dp, dv) > self.skin
 
     def build(self, pos, radius, n_active, vertices, triangles, wall_point=None, wall_normal=None,
-              n_owned=None, new_order=False):
-        """Rebuild all lists and carry the contact history over by key. The spatial
-        order ``perm`` is kept unless ``new_order`` (or there is none yet)."""
+              ghost=None, ids=None, carried=None, new_order=False):
+        """Rebuild all lists and carry the contact history over by key.
+
+        ``ids`` are the particles' global ids (default: their index), ascending, and
+        ``ghost`` marks the copies of other ranks' particles (default: none); pairs
+        of two ghosts are not listed, nor are the wall and facet candidates of a
+        ghost. The history comes from ``carried`` (:class:`ContactRecords`; default:
+        this list's own, :meth:`records`). The spatial order ``perm`` is kept unless
+        ``new_order`` (or there is none yet, or the particle count changed)."""
         if wall_point is None:
             wall_point = wall_normal = np.zeros((0, 3))
-        n_owned = n_active if n_owned is None else n_owned
+        ghost = np.zeros(n_active, np.bool_) if ghost is None else ghost
+        ids = np.arange(n_active, dtype=np.int64) if ids is None else np.asarray(ids, np.int64)
+        carried = self.records() if carried is None else carried
         bad = np.flatnonzero(~np.isfinite(pos[:n_active]).all(axis=1))
         if bad.size:  # the grid would be sized from NaN/inf: stop with the cause instead
             raise FloatingPointError(f"neighbour build: {bad.size} particle position(s) are not finite (first: "
-                                     f"particle {bad[0]}); the run has diverged (time step above the critical "
-                                     "one, or a force or velocity set to NaN/inf?)")
+                                     f"particle {ids[bad[0]]}); the run has diverged (time step above the "
+                                     "critical one, or a force or velocity set to NaN/inf?)")
         max_cells = max(1000, self.max_cells_per_particle * n_active)
-        r_max = float(radius[:n_active].max())
+        r_max = float(radius[:n_active].max()) if n_active else 0.0
         spread = float(np.max(np.ptp(pos[:n_active], axis=0))) if n_active else 0.0
         if not spread < MAX_SPREAD * (2.0 * r_max + self.skin):
             raise FloatingPointError(f"neighbour build: the particles spread over {spread:.3g} m, more than "
                                      f"{MAX_SPREAD:.0e} interaction ranges; the run has diverged (a force, "
                                      "velocity or time step far too large?)")
-        grid = build_cell_grid(pos, n_active, 2.0 * r_max + self.skin, max_cells)
+        grid = build_cell_grid(pos, n_active, max(2.0 * r_max + self.skin, 1e-300), max_cells)
         lo, cell_size, dims, cell_start, cell_particles, particle_cell = grid
-        n = np.int64(n_active)
-        old_keys = self.pair_i.astype(np.int64) * n + self.pair_j
         if new_order or self.perm is None or self.perm.size != n_active:
             self.perm = morton_order(particle_cell, dims)
             self.iperm = np.empty(n_active, np.int32)
             self.iperm[self.perm] = np.arange(n_active, dtype=np.int32)
+        self.ids = ids
         perm = self.perm
         i_start = np.zeros(n_active + 1, dtype=np.int64)
         dummy = np.empty(0, dtype=np.int32)
-        count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
-                                  n_active, i_start, dummy, False)
+        count_or_fill_pairs(pos, radius, ghost, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+                            n_active, i_start, dummy, False)
         i_start = np.cumsum(i_start)
         pair_j = np.empty(i_start[-1], dtype=np.int32)
-        count_or_fill_pairs(pos, radius, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
-                                  n_active, i_start, pair_j, True)
+        count_or_fill_pairs(pos, radius, ghost, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+                            n_active, i_start, pair_j, True)
         self.i_start = i_start
         self.pair_js = self.iperm[pair_j]
-        self._set_history(transfer_history(old_keys, self.history, self.pair_i.astype(np.int64) * n + pair_j))
+        self._set_history(transfer_history(carried.pair_keys, carried.pair_history,
+                                           record_keys(ids[self.pair_i], ids[pair_j])))
         self.j_start, self.j_slot = build_j_side(perm, self.iperm, i_start, self.pair_js)
         # plane walls
-        nw = np.int64(max(wall_point.shape[0], 1))
-        old_keys = self.w_particle.astype(np.int64) * nw + self.w_idx
-        old_hist = np.concatenate([self.w_hist, self.w_fn[:, None], self.w_force], axis=1)
         self.w_start, self.w_idx, self.w_particle, self.w_order = build_wall_candidates(
-            pos, radius, self.skin, perm, self.iperm, n_owned, wall_point, wall_normal)
-        new_hist = transfer_history(old_keys, old_hist, self.w_particle.astype(np.int64) * nw + self.w_idx)
+            pos, radius, self.skin, perm, self.iperm, ghost, wall_point, wall_normal)
+        new_hist = transfer_history(carried.wall_keys, carried.wall_history,
+                                    record_keys(ids[self.w_particle], self.w_idx))
         self.w_hist = np.ascontiguousarray(new_hist[:, :6])
         self.w_fn = np.ascontiguousarray(new_hist[:, 6])
         self.w_force = np.ascontiguousarray(new_hist[:, 7:])
@@ -437,17 +463,36 @@ class NeighborList:
         self.ref_wall_normal = wall_normal.copy()
         # facets
         if triangles.shape[0]:
-            f_start, f_tri = build_facet_list(pos, radius, n_active, self.skin, vertices, triangles, grid)
+            self.f_start, self.f_tri = build_facet_list(pos, radius, ghost, n_active, self.skin, vertices,
+                                                        triangles, grid)
         else:
-            f_start, f_tri = np.zeros(n_active + 1, np.int64), np.empty(0, np.int32)
-        n_tri = np.int64(max(triangles.shape[0], 1))
-        old_keys = self._facet_particles() * n_tri + self.f_tri
-        self.f_start, self.f_tri = f_start, f_tri
-        self.facet_history = transfer_history(old_keys, self.facet_history,
-                                              self._facet_particles() * n_tri + f_tri)
+            self.f_start, self.f_tri = np.zeros(n_active + 1, np.int64), np.empty(0, np.int32)
+        self.facet_history = transfer_history(carried.facet_keys, carried.facet_history,
+                                              record_keys(ids[self._facet_particles()], self.f_tri))
         self.ref_pos = pos[:n_active].copy()
         self.ref_vertices = vertices.copy()
         self.n_builds += 1
+
+    def records(self, owned=None):
+        """The contact history by global ids (:class:`ContactRecords`), rows that are not
+        all zero only. With ``owned`` (bool per particle), only the pairs whose i-side
+        (lower id) is owned: each pair once over all ranks."""
+        if self.perm is None:
+            keys = np.zeros(0, np.int64)
+            return ContactRecords(keys, np.zeros((0, 6)), keys, np.zeros((0, 10)), keys, np.zeros((0, 6)))
+        ids = self.ids
+        pair_i = self.pair_i
+        history = self.history
+        keep = np.any(history != 0.0, axis=1)
+        if owned is not None:
+            keep &= owned[pair_i]
+        wall = np.concatenate([self.w_hist, self.w_fn[:, None], self.w_force], axis=1)
+        live = np.any(wall != 0.0, axis=1)
+        facet_live = np.any(self.facet_history != 0.0, axis=1)
+        return ContactRecords(record_keys(ids[pair_i[keep]], ids[self.pair_j[keep]]), history[keep],
+                              record_keys(ids[self.w_particle[live]], self.w_idx[live]), wall[live],
+                              record_keys(ids[self._facet_particles()[facet_live]], self.f_tri[facet_live]),
+                              self.facet_history[facet_live])
 
     def _facet_particles(self):
         counts = np.diff(self.f_start)
@@ -479,6 +524,7 @@ class NeighborList:
             setattr(self, k, state[k].copy())
         self._set_history(state["history"])
         n = self.perm.size
+        self.ids = np.arange(n, dtype=np.int64)
         self.iperm = np.empty(n, np.int32)
         self.iperm[self.perm] = np.arange(n, dtype=np.int32)
         self.j_start, self.j_slot = build_j_side(self.perm, self.iperm, self.i_start, self.pair_js)

@@ -1,9 +1,10 @@
 """Sphere state as a struct of arrays (docs/design.md §1.2, §2.1).
 
-Layout: the first ``n_owned`` entries are the particles this process owns; the
-rest (``n - n_owned``) are ghost copies (reserved for MPI domain decomposition;
-a serial run has none). Every per-particle array has the particle as its first
-axis, so migration is a fancy-index of each array (:meth:`Particles.take`).
+``ghost`` marks the entries that are copies of particles another MPI rank owns
+(:mod:`de_domain.distributed`; a serial run has none): they are read by the
+contacts of owned particles and never integrated. Every per-particle array has the
+particle as its first axis, so migration is a fancy-index of each array
+(:meth:`Particles.take`).
 """
 from __future__ import annotations
 
@@ -44,7 +45,9 @@ class Particles:
         self.prescribed_velocity = np.zeros((n, 6))
         self.force = np.zeros((n, 3))
         self.torque = np.zeros((n, 3))
-        self.n_owned = n if n_owned is None else int(n_owned)
+        self.ghost = np.zeros(n, np.bool_)
+        if n_owned is not None:
+            self.ghost[int(n_owned):] = True
         if np.any(self.radius <= 0) or np.any(self.mass <= 0):
             raise ValueError("Particles: radius and mass must be > 0 for every particle")
 
@@ -67,12 +70,24 @@ class Particles:
     def n(self):
         return self.pos.shape[0]
 
+    @property
+    def n_owned(self):
+        """Entries that are not ghosts."""
+        return int(self.n - np.count_nonzero(self.ghost))
+
+    @property
+    def owned(self):
+        """Bool mask of the entries that are not ghosts."""
+        return ~self.ghost
+
     def take(self, index, n_owned=None):
         """New Particles made of the entries ``index`` (migration / reordering)."""
         out = Particles.__new__(Particles)
         for name in ARRAY_FIELDS:
             setattr(out, name, getattr(self, name)[index].copy())
-        out.n_owned = out.pos.shape[0] if n_owned is None else int(n_owned)
+        out.ghost = np.zeros(out.pos.shape[0], np.bool_)
+        if n_owned is not None:
+            out.ghost[int(n_owned):] = True
         return out
 
     def arrays(self):
@@ -83,7 +98,8 @@ class Particles:
         out = cls.__new__(cls)
         for name in ARRAY_FIELDS:
             setattr(out, name, np.array(arrays[name]))
-        out.n_owned = int(n_owned)
+        out.ghost = np.zeros(out.pos.shape[0], np.bool_)
+        out.ghost[int(n_owned):] = True
         return out
 
 

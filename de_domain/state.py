@@ -25,7 +25,6 @@ StepSettings = namedtuple("StepSettings", [
     "gravity",           # (3,) [m/s²]
     "local_damping",     # α_b, Cundall local damping (docs/design.md §2.13)
     "viscous_damping",   # α_v [1/s]
-    "n_owned",           # particles 0..n_owned−1 are integrated (the rest are ghosts)
     "has_constraints",   # any blocked or prescribed DOF
     "rolling",           # any material pair with rolling stiffness β_r > 0 (rolling moments stored)
     "in_order",          # the particle arrays are the spatially sorted copies (index = perm position)
@@ -40,6 +39,7 @@ ParticleArrays = namedtuple("ParticleArrays", [
     "prescribed_velocity",                      # (n, 6)
     "force", "torque",                          # (n, 3): resultant of the last step
     "ref_pos",                                  # (n, 3): positions at the last list build
+    "ghost",                                    # (n,) bool: a copy of another rank's particle (not integrated)
 ])
 """Per-particle arrays, in the public order or as spatially sorted copies."""
 

@@ -255,10 +255,10 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
     mass = particles.mass
     force = particles.force
     torque = particles.torque
-    n_owned = np.uint64(settings.n_owned)
+    ghost = particles.ghost
     for s in range(first, last):
         i = np.uint64(s) if settings.in_order else np.uint64(perm[s])
-        if i >= n_owned or w_start[s + 1] == w_start[s]:
+        if ghost[i] or w_start[s + 1] == w_start[s]:
             continue
         fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
         tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
@@ -498,16 +498,21 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
 def facet_vertex_forces(meshes, candidates):
     """Force on the facet vertices: −λ_a F per active candidate (serial, fixed order),
     into ``meshes.vertex_force``."""
-    vertex_force = meshes.vertex_force
-    cand_force = candidates.force
-    triangles = meshes.triangles
-    f_tri = candidates.triangle
+    vertex_forces_of_rows(meshes.vertex_force, meshes.triangles, candidates.triangle, candidates.barycentric,
+                          candidates.force)
+
+
+@njit(cache=True, error_model="numpy")
+def vertex_forces_of_rows(vertex_force, triangles, triangle, barycentric, force):
+    """``vertex_force`` = Σ −λ_a F over contact rows (triangle, weights, force on the
+    particle), in row order: :func:`facet_vertex_forces` for rows gathered from
+    several ranks (de_domain.distributed)."""
     vertex_force[:, :] = 0.0
-    for s in range(f_tri.size):
-        if cand_force[s, 0] == 0.0 and cand_force[s, 1] == 0.0 and cand_force[s, 2] == 0.0:
+    for s in range(triangle.size):
+        if force[s, 0] == 0.0 and force[s, 1] == 0.0 and force[s, 2] == 0.0:
             continue
-        t = f_tri[s]
+        t = triangle[s]
         for a in range(3):
             v = triangles[t, a]
             for d in range(3):
-                vertex_force[v, d] -= candidates.barycentric[s, a] * cand_force[s, d]
+                vertex_force[v, d] -= barycentric[s, a] * force[s, d]

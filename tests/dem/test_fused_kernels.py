@@ -12,7 +12,7 @@ from de_domain import Engine, FacetMesh, Material, Particles, PlaneWall
 STATE = ("pos", "vel", "angvel", "force", "torque")
 
 
-def loose_pile(seed=3, rolling=True):
+def loose_pile(seed=3, rolling=True, comm=None):
     """384 polydisperse spheres on a jittered lattice at about their contact distance
     in a box: contacts open and close, the lid moves, gravity acts."""
     rng = np.random.default_rng(seed)
@@ -32,7 +32,7 @@ def loose_pile(seed=3, rolling=True):
         walls += [PlaneWall(np.zeros(3), normal), PlaneWall(normal * top[d], -normal)]
     walls[5].velocity = (0.0, 0.0, -0.3)
     return Engine(p, mat, walls=walls, gravity=(0, 0, -9.81), dt=2e-6, local_damping=0.05,
-                  viscous_damping=1.0)
+                  viscous_damping=1.0, comm=comm)
 
 
 def fused_snapshot(engine):
@@ -47,7 +47,7 @@ def fused_snapshot(engine):
             "wall_point": np.array([w.point for w in engine.walls])}
 
 
-def split_box_pile(seed=1):
+def split_box_pile(seed=1, comm=None):
     """448 spheres in the split shear box (two facet meshes, the upper one moving)
     between a fixed bottom plane and a descending lid: facet face, edge and vertex
     contacts, rolling resistance, background damping."""
@@ -66,7 +66,8 @@ def split_box_pile(seed=1):
     upper = FacetMesh(*geometry.upper_half(), material=1)
     upper.velocity = (0.05, 0.0, 0.0)
     walls = [PlaneWall((0, 0, 0), (0, 0, 1), 1), PlaneWall((0, 0, 0.0095), (0, 0, -1), 1, velocity=(0, 0, -0.05))]
-    return Engine(p, mats, walls=walls, facets=[lower, upper], gravity=(0, 0, -9.81), dt=5e-7, local_damping=0.1)
+    return Engine(p, mats, walls=walls, facets=[lower, upper], gravity=(0, 0, -9.81), dt=5e-7, local_damping=0.1,
+                  comm=comm)
 
 
 def facet_snapshot(engine):

@@ -24,7 +24,7 @@ radius = np.array([1e-3])
 vertices = np.array([[0.0, 0.0, 0.0], [4e-3, 0.0, 0.0], [0.0, 4e-3, 0.0]])
 triangles = np.array([[0, 1, 2]])
 grid = build_cell_grid(pos, 1, 4e-3, 1000)
-f_start, f_tri = build_facet_list(pos, radius, 1, 1e-3, vertices, triangles, grid)
+f_start, f_tri = build_facet_list(pos, radius, np.zeros(1, np.bool_), 1, 1e-3, vertices, triangles, grid)
 print(f_tri.size, sum(_count_or_fill_facets.stats.cache_hits.values()))
 """
 

@@ -1,0 +1,277 @@
+"""The DEM over MPI ranks: owned particles, ghosts, migration, bit-identical results.
+
+Each rank owns the particles of its slab (:mod:`de_domain.decomposition`) and
+keeps ghost copies of the particles of other ranks within the ghost width. Its
+arrays hold owned particles and ghosts together, **in ascending global id** (the
+particle's index in the engine's input), with ``Particles.ghost`` marking the
+ghosts. That one rule makes every result independent of the rank count:
+
+* the pair half list is "j > i" by local index, i.e. by global id, so a pair
+  straddling two ranks is computed on both, with i the lower id, the same
+  operands, the same history — the same bits;
+* each owned particle sums its i-side pairs (ascending id), its j-side pairs
+  (ascending id), its walls and facets in the serial code's order (de_domain.fused);
+* wall forces are summed over the contacts of all ranks in global-id blocks
+  (the serial code's order), facet vertex forces over all ranks' active
+  candidates sorted by (id, triangle) — both gathered on every rank.
+
+One step is: the compiled step of :mod:`de_domain.fused` on this rank's arrays
+(in the spatially sorted copies, which stay alive between list rebuilds), then
+the ghost exchange (:class:`de_domain.comm.GhostExchange`), then an all-reduce of
+"a list rebuild is due". A rebuild moves every owned particle that left its slab
+to its new owner with its wall and facet contact history, sends every pair
+history (from the rank owning the pair's lower id) to the owners of both
+particles, re-cuts the slabs when the counts per rank are uneven
+(:func:`de_domain.decomposition.needs_rebalance`), sends the new ghosts and
+rebuilds the lists. Energy books are summed over ranks in rank order.
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from . import fused
+from .comm import GhostExchange, concatenate_records, exchange_records, gather_rows
+from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
+from .neighbors import ContactRecords, record_keys
+from .particles import ARRAY_FIELDS, Particles
+from .state import BOOK_INITIALISED
+from .walls import vertex_forces_of_rows
+
+ID_MASK = (1 << 32) - 1
+
+
+class Domain:
+    """One rank's share: communicator, decomposition, global ids of the local rows,
+    the ghost exchange plan, and counters for the benchmarks."""
+
+    def __init__(self, comm, n_global):
+        self.comm = comm
+        self.n_global = int(n_global)
+        self.decomposition = None
+        self.ids = np.empty(0, np.int64)
+        self.exchange = None
+        self.migrated = 0  # particles this rank sent away, all rebuilds
+        self.rebuilds = 0
+
+
+def distribute(engine, particles, comm):
+    """Keep this rank's slab of the global ``particles`` (identical on every rank);
+    the ghosts come with the first list build."""
+    domain = Domain(comm, particles.n)
+    engine.domain = domain
+    ids = np.arange(particles.n, dtype=np.int64)
+    domain.decomposition = _decompose(comm, particles.pos, particles.radius, engine.neighbors.skin, gathered=True)
+    mine = domain.decomposition.owner(particles.pos) == comm.rank
+    domain.ids = ids[mine]
+    engine.particles = particles.take(mine)
+    engine.acceleration = engine.acceleration[mine].copy()
+
+
+def _decompose(comm, pos, radius, skin, gathered=False):
+    """Slabs cut at equal particle counts along the axis of largest spread. ``pos``:
+    every particle's (``gathered``) or this rank's owned ones."""
+    lo = pos.min(axis=0) if pos.shape[0] else np.full(3, np.inf)
+    hi = pos.max(axis=0) if pos.shape[0] else np.full(3, -np.inf)
+    r_max = float(radius.max()) if radius.size else 0.0
+    if not gathered:
+        lo, hi = lo.copy(), hi.copy()
+        comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+        comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+        r_max = comm.allreduce(r_max, op=MPI.MAX)
+    axis = spread_axis(lo, hi)
+    coordinates = pos[:, axis] if gathered else gather_rows(comm, pos[:, axis])
+    return SlabDecomposition(axis, balanced_cuts(coordinates, comm.size), 2.0 * r_max + skin)
+
+
+def _rows(particles, acceleration, ids, mask):
+    """The particle record of the rows ``mask``: every per-particle array, the
+    acceleration and the global id."""
+    out = {name: getattr(particles, name)[mask] for name in ARRAY_FIELDS}
+    out["acceleration"] = acceleration[mask]
+    out["id"] = ids[mask]
+    return out
+
+
+def _history_rows(records, keep):
+    return {k: getattr(records, k)[keep[k.split("_")[0]]] for k in ContactRecords._fields}
+
+
+def rebuild(engine):
+    """Migration, new decomposition if uneven, new ghosts, new lists (module docstring)."""
+    domain = engine.domain
+    comm = domain.comm
+    rank = comm.rank
+    p = engine.particles
+    nl = engine.neighbors
+    owned = p.owned
+    ids = domain.ids
+    pending = engine._pending_records  # a checkpoint's history, on every rank
+    engine._pending_records = None
+    records = nl.records(owned=owned)
+    if needs_rebalance(comm.allgather(int(owned.sum()))):
+        domain.decomposition = _decompose(comm, p.pos[owned], p.radius[owned], nl.skin)
+    decomposition = domain.decomposition
+    new_owner = decomposition.owner(p.pos)  # ghosts included: their positions are current
+    owner_of = {"pair": (new_owner[np.searchsorted(ids, records.pair_keys >> 32)],
+                         new_owner[np.searchsorted(ids, records.pair_keys & ID_MASK)]),
+                "wall": (new_owner[np.searchsorted(ids, records.wall_keys >> 32)],),
+                "facet": (new_owner[np.searchsorted(ids, records.facet_keys >> 32)],)}
+    outgoing = {}
+    leaving = owned & (new_owner != rank)
+    for r in range(comm.size):
+        if r == rank:
+            continue
+        history = {kind: np.logical_or.reduce([o == r for o in owners]) for kind, owners in owner_of.items()}
+        moving = leaving & (new_owner == r)
+        if moving.any() or any(h.any() for h in history.values()):
+            outgoing[r] = {"particles": _rows(p, engine.acceleration, ids, moving),
+                           "history": _history_rows(records, history)}
+    received = exchange_records(comm, outgoing)
+    domain.migrated += int(leaving.sum())
+    kept_history = {kind: np.logical_or.reduce([o == rank for o in owners]) for kind, owners in owner_of.items()}
+    staying = _rows(p, engine.acceleration, ids, owned & (new_owner == rank))
+    mine = concatenate_records([staying] + [d["particles"] for d in received.values()], staying)
+    order = np.argsort(mine["id"], kind="stable")
+    mine = {k: v[order] for k, v in mine.items()}
+    local_history = _history_rows(records, kept_history)
+    history = concatenate_records([local_history] + [d["history"] for d in received.values()], local_history)
+    # ghosts of the new owned set
+    targets = decomposition.ghost_ranks(mine["pos"], rank)
+    outgoing = {r: {"particles": {k: v[targets[:, r]] for k, v in mine.items()}}
+                for r in range(comm.size) if targets[:, r].any()}
+    received = exchange_records(comm, outgoing)
+    ghosts = concatenate_records([d["particles"] for d in received.values()], mine)
+    local = concatenate_records([mine, ghosts], mine)
+    order = np.argsort(local["id"], kind="stable")
+    local = {k: v[order] for k, v in local.items()}
+    n_mine = mine["id"].size
+    ghost = np.ones(local["id"].size, np.bool_)
+    ghost[np.argsort(order)[:n_mine]] = False
+    engine.particles = Particles.from_arrays(local, 0)
+    engine.particles.ghost = ghost
+    engine.acceleration = local["acceleration"]
+    domain.ids = local["id"]
+    carried = ContactRecords(**history) if pending is None else pending
+    p = engine.particles
+    vertices = engine._gather_facets()[0]
+    wall_point, wall_normal, _, _ = engine._wall_arrays()
+    nl.build(p.pos, p.radius, p.n, vertices, engine._triangles, wall_point, wall_normal, ghost=ghost,
+             ids=domain.ids, carried=carried, new_order=True)
+    engine._allocate_pair_arrays(nl.pair_js.size)
+    send = {r: nl.iperm[np.searchsorted(domain.ids, mine["id"][targets[:, r]])] for r in outgoing}
+    receive = {r: nl.iperm[np.searchsorted(domain.ids, d["particles"]["id"])] for r, d in received.items()}
+    domain.exchange = GhostExchange(comm, send, receive)
+    domain.rebuilds += 1
+
+
+def rebuild_due(engine):
+    """This rank's part of the rebuild test on the public arrays (before a run): no
+    lists yet, the walls changed, or owned particles, walls or vertices moved more
+    than the skin allows since the last build."""
+    nl = engine.neighbors
+    p = engine.particles
+    if nl.perm is None or nl.ref_pos is None or nl.ref_pos.shape[0] != p.n:
+        return True
+    vertices = engine._gather_facets()[0]
+    wall_point, wall_normal, _, _ = engine._wall_arrays()
+    return nl.needs_rebuild(p.pos, p.n, vertices, wall_point, wall_normal)
+
+
+def run(engine, nsteps):
+    """``nsteps`` distributed steps (module docstring)."""
+    domain = engine.domain
+    comm = domain.comm
+    engine._book_boundary_jumps()
+    due = rebuild_due(engine)
+    copies = None
+    for _ in range(int(nsteps)):
+        if comm.allreduce(bool(due), op=MPI.LOR):
+            if copies is not None:
+                engine._write_back(copies)
+            rebuild(engine)
+            copies = None
+        if copies is None:
+            copies = engine._sorted_copies()
+        due = engine._advance_copies(copies)
+        domain.exchange.exchange(copies)
+        if engine.facets:
+            facet_vertex_forces(engine)
+    if copies is not None:
+        engine._write_back(copies)
+    wall_totals(engine)
+
+
+def wall_totals(engine):
+    """The force of all ranks' particles on each plane wall, summed in the serial
+    order (global-id blocks of ``fused.PBLOCK``), on every rank."""
+    if not engine.walls:
+        return
+    nl = engine.neighbors
+    ids = engine.domain.ids
+    comm = engine.domain.comm
+    rows = np.concatenate([ids[nl.w_particle][:, None].astype(np.float64), nl.w_idx[:, None].astype(np.float64),
+                           nl.w_force], axis=1)
+    rows = gather_rows(comm, rows)
+    gid = rows[:, 0].astype(np.int64)
+    wall = rows[:, 1].astype(np.int32)
+    order = np.lexsort((wall, gid)).astype(np.int32)
+    totals = fused.wall_totals(len(engine.walls), wall, gid, order, np.ascontiguousarray(rows[:, 2:]), fused.PBLOCK)
+    for w, plane in enumerate(engine.walls):
+        plane.force = totals[w].copy()
+
+
+def facet_vertex_forces(engine):
+    """This step's facet vertex forces from the active candidates of all ranks, in
+    (global id, triangle) order — the serial code's — and the impulses F Δt."""
+    nl = engine.neighbors
+    ids = engine.domain.ids
+    active = np.any(engine.facet_force != 0.0, axis=1)
+    particle = ids[np.repeat(np.arange(nl.f_start.size - 1), np.diff(nl.f_start))][active]
+    rows = np.concatenate([particle[:, None].astype(np.float64), nl.f_tri[active][:, None].astype(np.float64),
+                           engine.facet_lambda[active], engine.facet_force[active]], axis=1)
+    rows = gather_rows(engine.domain.comm, rows)
+    order = np.argsort(record_keys(rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)), kind="stable")
+    rows = rows[order]
+    force = engine._vertex_force
+    vertex_forces_of_rows(force, engine._triangles, rows[:, 1].astype(np.int64), np.ascontiguousarray(rows[:, 2:5]),
+                          np.ascontiguousarray(rows[:, 5:8]))
+    for k, mesh in enumerate(engine.facets):
+        part = slice(engine._vertex_offsets[k], engine._vertex_offsets[k + 1])
+        mesh.vertex_impulse[:] += force[part] * engine.dt
+        mesh.vertex_force = force[part].copy()
+        mesh.force = mesh.vertex_force.sum(axis=0)
+
+
+def gather_owned(engine):
+    """The particle records of every rank's owned particles, in global-id order, on
+    every rank (collective)."""
+    p = engine.particles
+    rows = _rows(p, engine.acceleration, engine.domain.ids, p.owned)
+    merged = concatenate_records(engine.domain.comm.allgather(rows), rows)
+    order = np.argsort(merged["id"], kind="stable")
+    return {k: v[order] for k, v in merged.items()}
+
+
+def gather_records(engine):
+    """Every rank's contact history (each pair once), sorted by key, on every rank."""
+    records = engine.neighbors.records(owned=engine.particles.owned)
+    out = {}
+    for kind in ("pair", "wall", "facet"):
+        keys = gather_rows(engine.domain.comm, getattr(records, f"{kind}_keys"))
+        history = gather_rows(engine.domain.comm, getattr(records, f"{kind}_history"))
+        order = np.argsort(keys, kind="stable")
+        out[f"{kind}_keys"] = keys[order]
+        out[f"{kind}_history"] = history[order]
+    return ContactRecords(**out)
+
+
+def reduce_books(engine, books):
+    """Energy books of all ranks summed in rank order (the 'initialised' flag: any)."""
+    parts = engine.domain.comm.allgather(books)
+    total = np.zeros_like(books)
+    for part in parts:
+        total += part
+    total[BOOK_INITIALISED] = max(part[BOOK_INITIALISED] for part in parts)
+    return total
+
