@@ -65,6 +65,12 @@ class GhostExchange:
         return int(sum(rows.size for rows in self.receive.values()))
 
     @property
+    def buffer_bytes(self):
+        """Bytes of the buffers and row lists this rank holds."""
+        return int(sum(b.nbytes for b in (*self._send_buffers.values(), *self._receive_buffers.values(),
+                                          *self.send.values(), *self.receive.values())))
+
+    @property
     def bytes_sent(self):
         """Bytes this rank sends per step."""
         return int(sum(b.nbytes for b in self._send_buffers.values()))

@@ -43,50 +43,86 @@ class SphereRegion:
         return np.linalg.norm(points - np.asarray(self.center, float), axis=1) <= self.radius
 
 
+def _domain(engine):
+    return getattr(engine, "domain", None)
+
+
+def _rank_sums(engine, values):
+    """``values`` (this rank's partial sums, an array) summed over the ranks of a
+    distributed engine in rank order (collective), the same bits on every rank; a
+    serial engine's own ``values``."""
+    values = np.asarray(values, dtype=np.float64)
+    domain = _domain(engine)
+    if domain is None:
+        return values
+    total = np.zeros_like(values)
+    for part in domain.comm.allgather(values):
+        total += part
+    return total
+
+
 def kinetic_energy(engine):
-    """Σ ½ m v² + ½ I ω² over owned particles (current half-step velocities)."""
+    """Σ ½ m v² + ½ I ω² over owned particles (current half-step velocities); a
+    distributed engine sums over its ranks (collective)."""
     p = engine.particles
-    n = p.n_owned
-    return float(0.5 * np.sum(p.mass[:n] * np.sum(p.vel[:n] ** 2, axis=1))
-                 + 0.5 * np.sum(p.inertia[:n] * np.sum(p.angvel[:n] ** 2, axis=1)))
+    mine = p.owned
+    terms = (0.5 * np.sum(p.mass[mine] * np.sum(p.vel[mine] ** 2, axis=1)),
+             0.5 * np.sum(p.inertia[mine] * np.sum(p.angvel[mine] ** 2, axis=1)))
+    if _domain(engine) is None:
+        return float(terms[0] + terms[1])
+    translational, rotational = _rank_sums(engine, terms)
+    return float(translational + rotational)
+
+
+def _owned_contacts(engine, c):
+    """Masks of the contacts this rank counts: sphere pairs whose lower id ``i`` it owns
+    (a pair straddling two ranks is listed on both), wall and facet contacts of its
+    owned particles. Every contact is counted on exactly one rank."""
+    owned = engine.particles.owned
+    return owned[c["i"]], owned[c["wall_particle"]], owned[c["facet_particle"]]
 
 
 def unbalanced_force_ratio(engine):
     """mean |resultant force| / mean |contact force| (YADE ``unbalancedForce``).
 
     The resultant is contacts + gravity of the last step over free particles; 0/0
-    (no contacts) returns 1.0 ("not in equilibrium").
+    (no contacts) returns 1.0 ("not in equilibrium"). A distributed engine takes the
+    means over all ranks (collective).
     """
     p = engine.particles
-    n = p.n_owned
-    free = ~np.all(p.blocked[:n, :3] | p.prescribed[:n, :3], axis=1)
-    resultant = np.linalg.norm(p.force[:n][free], axis=1)
+    mine = p.owned
+    free = ~np.all(p.blocked[mine, :3] | p.prescribed[mine, :3], axis=1)
+    resultant = np.linalg.norm(p.force[mine][free], axis=1)
     c = engine.contacts()
-    forces = np.concatenate([np.linalg.norm(c["force"], axis=1), np.linalg.norm(c["wall_force"], axis=1),
-                             np.linalg.norm(c["facet_force"], axis=1)])
-    if forces.size == 0 or resultant.size == 0:
+    pairs, walls, facets = _owned_contacts(engine, c)
+    forces = np.concatenate([np.linalg.norm(c["force"][pairs], axis=1), np.linalg.norm(c["wall_force"][walls], axis=1),
+                             np.linalg.norm(c["facet_force"][facets], axis=1)])
+    resultant_sum, resultant_count, force_sum, force_count = _rank_sums(
+        engine, [np.sum(resultant), resultant.size, np.sum(forces), forces.size])
+    if force_count == 0 or resultant_count == 0:
         return 1.0
-    mean_contact = forces.mean()
-    return float(resultant.mean() / mean_contact) if mean_contact > 0 else 1.0
+    mean_contact = force_sum / force_count
+    return float((resultant_sum / resultant_count) / mean_contact) if mean_contact > 0 else 1.0
 
 
 def coordination_number(engine, region=None, include_walls=False):
     """Z = 2 N_c / N_p over particles (centres) in ``region`` (all if None).
 
     Sphere–sphere contacts count for both spheres; wall/facet contacts count once
-    when ``include_walls``.
+    when ``include_walls``. A distributed engine counts over all ranks (collective).
     """
     p = engine.particles
-    n = p.n_owned
-    inside = np.ones(n, bool) if region is None else region.contains(p.pos[:n])
-    if not inside.any():
-        return 0.0
+    mine = p.owned
+    inside = np.ones(int(np.count_nonzero(mine)), bool) if region is None else region.contains(p.pos[mine])
     c = engine.contacts()
-    counts = np.bincount(c["i"], minlength=p.n)[:n] + np.bincount(c["j"], minlength=p.n)[:n]
+    counts = np.bincount(c["i"], minlength=p.n)[mine] + np.bincount(c["j"], minlength=p.n)[mine]
     if include_walls:
-        counts = counts + np.bincount(c["wall_particle"], minlength=p.n)[:n] \
-            + np.bincount(c["facet_particle"], minlength=p.n)[:n]
-    return float(counts[inside].sum() / inside.sum())
+        counts = counts + np.bincount(c["wall_particle"], minlength=p.n)[mine] \
+            + np.bincount(c["facet_particle"], minlength=p.n)[mine]
+    contacts, particles = _rank_sums(engine, [counts[inside].sum(), inside.sum()])
+    if particles == 0:
+        return 0.0
+    return float(contacts / particles)
 
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(32)
@@ -122,10 +158,14 @@ def _sphere_sphere_volume(d, r, big_r):
 
 
 def solid_volume(engine, region):
-    """Volume of the spheres' parts inside ``region``."""
-    p = engine.particles
-    n = p.n_owned
-    pos, rad = p.pos[:n], p.radius[:n]
+    """Volume of the spheres' parts inside ``region`` (owned particles; a distributed
+    engine sums over its ranks, collective)."""
+    return float(_rank_sums(engine, [_solid_volume(engine.particles, region)])[0])
+
+
+def _solid_volume(p, region):
+    mine = p.owned
+    pos, rad = p.pos[mine], p.radius[mine]
     total = 0.0
     if isinstance(region, SphereRegion):
         d = np.linalg.norm(pos - np.asarray(region.center, float), axis=1)
@@ -157,22 +197,24 @@ def love_weber_stress(engine, region):
 
     Compression positive: sphere pairs f_c = force on j (= −force on i), l_c = x_j − x_i;
     wall/facet contacts f_c = force on the wall, l_c = contact point − x_i. The
-    tensor is symmetrised only by equilibrium (returned as computed).
+    tensor is symmetrised only by equilibrium (returned as computed). A distributed
+    engine sums over its ranks (collective).
     """
     p = engine.particles
     c = engine.contacts()
+    pairs, walls, facets = _owned_contacts(engine, c)
     sigma = np.zeros((3, 3))
-    sel = region.contains(c["point"]) if len(c["i"]) else np.zeros(0, bool)
+    sel = region.contains(c["point"]) & pairs if len(c["i"]) else np.zeros(0, bool)
     sigma += np.einsum("ci,cj->ij", -c["force"][sel], c["branch"][sel])
     if len(c["wall_particle"]):
-        sel = region.contains(c["wall_point"])
+        sel = region.contains(c["wall_point"]) & walls
         arm = c["wall_point"][sel] - p.pos[c["wall_particle"][sel]]
         sigma += np.einsum("ci,cj->ij", -c["wall_force"][sel], arm)
     if len(c["facet_particle"]):
-        sel = region.contains(c["facet_point"])
+        sel = region.contains(c["facet_point"]) & facets
         arm = c["facet_point"][sel] - p.pos[c["facet_particle"][sel]]
         sigma += np.einsum("ci,cj->ij", -c["facet_force"][sel], arm)
-    return sigma / region.volume
+    return _rank_sums(engine, sigma) / region.volume
 
 
 def energy_balance(engine):

@@ -33,7 +33,7 @@ from mpi4py import MPI
 from . import fused
 from .comm import GhostExchange, concatenate_records, exchange_records, gather_rows
 from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
-from .neighbors import ContactRecords, record_keys
+from .neighbors import MAX_SPREAD, ContactRecords, record_keys
 from .particles import ARRAY_FIELDS, Particles
 from .state import BOOK_INITIALISED
 from .walls import vertex_forces_of_rows
@@ -106,6 +106,7 @@ def rebuild(engine):
     nl = engine.neighbors
     owned = p.owned
     ids = domain.ids
+    check_finite(engine)
     pending = engine._pending_records  # a checkpoint's history, on every rank
     engine._pending_records = None
     records = nl.records(owned=owned)
@@ -163,6 +164,34 @@ def rebuild(engine):
     receive = {r: nl.iperm[np.searchsorted(domain.ids, d["particles"]["id"])] for r, d in received.items()}
     domain.exchange = GhostExchange(comm, send, receive)
     domain.rebuilds += 1
+
+
+def check_finite(engine):
+    """Collective: raise the same FloatingPointError on every rank if any rank holds an
+    owned particle whose position is not finite or that flew off (the serial list build's
+    checks, agreed before particles are sent anywhere)."""
+    p = engine.particles
+    comm = engine.domain.comm
+    pos = p.pos[p.owned]
+    bad = np.flatnonzero(~np.isfinite(pos).all(axis=1))
+    message = None
+    if bad.size:
+        message = (f"{bad.size} particle position(s) are not finite on rank {comm.rank} (first: particle "
+                   f"{engine.domain.ids[p.owned][bad[0]]}); the run has diverged (time step above the critical "
+                   "one, or a force or velocity set to NaN/inf?)")
+    lo = pos.min(axis=0) if pos.shape[0] and not bad.size else np.full(3, np.inf)
+    hi = pos.max(axis=0) if pos.shape[0] and not bad.size else np.full(3, -np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    spread = float(np.max(hi - lo)) if np.all(hi >= lo) else 0.0
+    reach = engine.domain.decomposition.width
+    messages = [m for m in comm.allgather(message) if m is not None]
+    if messages:
+        raise FloatingPointError(f"neighbour build: {messages[0]}")
+    if not spread < MAX_SPREAD * reach:
+        raise FloatingPointError(f"neighbour build: the particles spread over {spread:.3g} m, more than "
+                                 f"{MAX_SPREAD:.0e} interaction ranges; the run has diverged (a force, "
+                                 "velocity or time step far too large?)")
 
 
 def rebuild_due(engine):

@@ -475,11 +475,16 @@ class Engine:
             out[k] = getattr(self, k).nbytes
         out.update(self.neighbors.memory_bytes())
         p = self.particles
-        if p.n_owned == p.n and p.n:  # transient copies in the spatial order during run(n ≥ SORTED_MIN_STEPS)
-            per = 6 * 24 + 3 * 8 + 4 + 24  # pos vel acc angvel force torque, radius mass inertia, material, ref_pos
-            if p.blocked.any() or p.prescribed.any():
+        if p.n:  # copies in the spatial order during run(n ≥ SORTED_MIN_STEPS), and in every distributed run
+            per = 6 * 24 + 3 * 8 + 4 + 24 + 1  # pos vel acc angvel force torque, radius mass inertia, material,
+            if p.blocked.any() or p.prescribed.any():  # ref_pos, ghost
                 per += 6 + 6 + 48
             out["run.sorted_copies"] = per * p.n
+        out["particles.ghost"] = p.ghost.nbytes
+        if self.domain is not None:
+            out["domain.ids"] = self.domain.ids.nbytes
+            if self.domain.exchange is not None:
+                out["domain.exchange"] = self.domain.exchange.buffer_bytes
         return out
 
     def contacts(self):

@@ -33,11 +33,14 @@ def _write_vtu(path, points, connectivity, cell_size, cell_type, point_data):
 
 
 def write_particles_vtu(path, particles):
-    """Spheres as VTK vertices with radius, velocity, angular velocity, force, material, group."""
-    n = particles.n_owned
-    return _write_vtu(path, particles.pos[:n], np.arange(n), 1, _VTK_VERTEX, {
-        "radius": particles.radius[:n], "velocity": particles.vel[:n], "angular_velocity": particles.angvel[:n],
-        "force": particles.force[:n], "material": particles.material[:n], "group": particles.group[:n]})
+    """Spheres as VTK vertices with radius, velocity, angular velocity, force, material, group
+    (the owned particles only: ghost copies are left out)."""
+    mine = particles.owned
+    n = int(np.count_nonzero(mine))
+    return _write_vtu(path, particles.pos[mine], np.arange(n), 1, _VTK_VERTEX, {
+        "radius": particles.radius[mine], "velocity": particles.vel[mine],
+        "angular_velocity": particles.angvel[mine], "force": particles.force[mine],
+        "material": particles.material[mine], "group": particles.group[mine]})
 
 
 def write_facets_vtu(path, mesh):
@@ -47,10 +50,26 @@ def write_facets_vtu(path, mesh):
 
 
 def write_frame(directory, engine, step):
-    """Particles (and every facet mesh) of one output frame; returns the written paths."""
+    """Particles (and every facet mesh) of one output frame; returns the written paths.
+
+    A distributed engine (``engine.domain`` set; collective): every rank's owned
+    particles are gathered in global-id order and rank 0 writes the files, once; every
+    rank returns the same paths."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    paths = [write_particles_vtu(directory / f"particles_{step:08d}.vtu", engine.particles)]
-    for k, mesh in enumerate(engine.facets):
-        paths.append(write_facets_vtu(directory / f"facets{k}_{step:08d}.vtu", mesh))
-    return paths
+    particle_path = directory / f"particles_{step:08d}.vtu"
+    facet_paths = [directory / f"facets{k}_{step:08d}.vtu" for k in range(len(engine.facets))]
+    domain = getattr(engine, "domain", None)
+    if domain is None:
+        directory.mkdir(parents=True, exist_ok=True)
+        paths = [write_particles_vtu(particle_path, engine.particles)]
+        for path, mesh in zip(facet_paths, engine.facets, strict=True):
+            paths.append(write_facets_vtu(path, mesh))
+        return paths
+    particles = engine.global_particles()  # collective
+    if domain.comm.rank == 0:  # the facet meshes are global: identical on every rank
+        directory.mkdir(parents=True, exist_ok=True)
+        write_particles_vtu(particle_path, particles)
+        for path, mesh in zip(facet_paths, engine.facets, strict=True):
+            write_facets_vtu(path, mesh)
+    domain.comm.Barrier()  # the files exist when any rank returns
+    return [particle_path, *facet_paths]

@@ -1,12 +1,15 @@
 """Case kind ``dem``: particles, materials and walls from a case file, run for a
 duration, with CSV time series, ParaView frames, checkpoints and a progress line.
 
-The DEM runs on MPI rank 0; other ranks wait (the DEM is not domain-decomposed yet).
-A given time step is checked against the critical step before the run, and a packing
+Under ``mpirun -n N`` (N > 1) the DEM is distributed over the ranks (``Engine(comm=...)``,
+bit-identical to a serial run); rank 0 writes every output (CSV series, ParaView frames,
+final packing, plots, checkpoints) from the gathered/global state. A given time step
+is checked against the critical step before the run, and a packing
 file for NaN/inf values, lengths and initial overlaps.
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -14,12 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from cosim.case import resolve_path, warn
-from cosim.errors import CaseError
+from cosim.errors import CaseError, RunFailed
 from cosim.outputs import (
     CsvSeries,
     ProgressLine,
     PvdCollection,
-    is_root,
     mpi_comm,
     save_engine_checkpoint,
     say,
@@ -36,24 +38,33 @@ ENERGY_WARNING = 0.05  # an energy balance residual above this fraction of work 
 
 
 def prepare(case, case_path, out_dir, resume):
-    """On rank 0, where the DEM runs: the engine, built from the case (or loaded from the
-    checkpoint to resume), with its time step checked. None on the other ranks."""
-    if not is_root():
-        return None
+    """The engine, built from the case (or loaded from the checkpoint to resume), with its
+    time step checked. Serial (one rank): as ever. Under ``mpirun -n N`` (N > 1),
+    collective: rank 0 reads the inputs and sends them to every rank, and every rank
+    builds its share of the distributed engine (``comm``)."""
+    comm = mpi_comm()
+    distributed = comm if comm.size > 1 else None
     if resume:
-        return load_checkpoint(case_path, Path(out_dir) / CHECKPOINT)
-    engine = build_engine(case_path, case, read_inputs(case, case_path))
-    check_time_step(case_path, case.time, engine)
+        return load_checkpoint(case_path, Path(out_dir) / CHECKPOINT, comm=distributed)
+    if distributed is None:
+        built = read_inputs(case, case_path)
+    else:
+        from cosim.apps import on_root
+        built = comm.bcast(on_root(comm, lambda: read_inputs(case, case_path)), root=0)
+    engine = build_engine(case_path, case, built, comm=distributed)
+    check_time_step(case_path, case.time, engine)  # collective when distributed (critical step)
     return engine
 
 
-def load_checkpoint(case_path, checkpoint):
+def load_checkpoint(case_path, checkpoint, comm=None):
+    """The engine saved in ``checkpoint`` (serial or distributed, with ``comm``: over its
+    ranks, from a checkpoint of any rank count)."""
     from de_domain import Engine
     if not checkpoint.exists():
         raise CaseError(case_path, "--resume", str(checkpoint),
                         "no checkpoint in the output folder; run without --resume")
     try:
-        return Engine.load_checkpoint(checkpoint)
+        return Engine.load_checkpoint(checkpoint, comm=comm)
     except Exception as exc:
         raise CaseError(checkpoint, "<checkpoint>", checkpoint.name, f"cannot be read ({exc}); run without --resume") \
             from None
@@ -137,15 +148,16 @@ def check_steps(case_path, time_section, dt):
                         "steps per run")
 
 
-def build_engine(case_path, case, built, extra_facets=()):
-    """The Engine of the case's [dem] section and the ``built`` inputs (read_inputs)."""
+def build_engine(case_path, case, built, extra_facets=(), comm=None):
+    """The Engine of the case's [dem] section and the ``built`` inputs (read_inputs);
+    with ``comm``, distributed over its ranks (collective; the same ``built`` on every rank)."""
     try:
-        return _engine(case, built, extra_facets)
+        return _engine(case, built, extra_facets, comm)
     except ValueError as exc:  # the de_domain constructors check their own inputs
         raise CaseError(case_path, "dem", "[dem]", str(exc)) from None
 
 
-def _engine(case, built, extra_facets):
+def _engine(case, built, extra_facets, comm=None):
     from de_domain import Engine, Material, Particles, PlaneWall
     dem = case.dem
     names = [m.name for m in dem.materials]
@@ -163,60 +175,107 @@ def _engine(case, built, extra_facets):
             facets.append(mesh)
     return Engine(particles, materials, walls=walls, facets=facets + list(extra_facets), contact_law=dem.contact_law,
                   gravity=dem.gravity, dt=case.time.dt, safety_factor=case.time.safety_factor,
-                  local_damping=dem.local_damping, viscous_damping=dem.viscous_damping)
+                  local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
 
 
 def run(prepared):
-    """The DEM on rank 0; the other ranks wait (the DEM is not domain-decomposed yet)."""
+    """The DEM: on every rank when distributed (``mpirun -n N``, N > 1), alone otherwise;
+    rank 0 writes the outputs."""
     case = prepared.case
     write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
-    if is_root():
-        _run_root(case, prepared.built, prepared.out_dir, prepared.resume)
+    if prepared.built is not None:
+        _run_engine(case, prepared.built, prepared.out_dir, prepared.resume)
     mpi_comm().Barrier()
 
 
-def _run_root(case, engine, out_dir, resume):
+def _save_checkpoint(engine, path):
+    """``save_engine_checkpoint``; a distributed engine's (collective: rank 0 writes the
+    gathered state to a temporary file, then renames it)."""
+    if engine.domain is None:
+        save_engine_checkpoint(engine, path)
+        return
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    engine.save_checkpoint(tmp)  # ends with a barrier: the file is complete
+    if engine.domain.comm.rank == 0:
+        os.replace(tmp, path)
+    engine.domain.comm.Barrier()
+
+
+def _advance(engine, nsteps):
+    """``engine.run(nsteps)``. A distributed engine checks for a diverged state
+    collectively (de_domain.distributed.check_finite) and raises the same
+    FloatingPointError on every rank: a RunFailed, which rank 0 reports once."""
+    try:
+        engine.run(nsteps)
+    except FloatingPointError as exc:
+        if engine.domain is None:
+            raise
+        raise RunFailed(str(exc)) from None
+
+
+def _run_engine(case, engine, out_dir, resume):
+    """The run loop; collective when the engine is distributed (every rank calls it), with
+    the files written on rank 0 only."""
     from de_domain import diagnostics
     from de_domain.io import write_frame
 
+    comm = engine.domain.comm if engine.domain is not None else None
+    root = comm is None or comm.rank == 0
+    n_particles = engine.domain.n_global if comm is not None else engine.particles.n
     checkpoint = out_dir / CHECKPOINT
     total = case.time.steps or int(np.ceil(case.time.duration / engine.dt))
     interval = case.output.interval or total * engine.dt / 20
     every = max(1, int(round(interval / engine.dt)))
-    say(f"[{case.case.name}] {engine.particles.n} spheres, dt = {engine.dt:.3e} s "
-        f"(critical {engine.critical_timestep():.3e} s), {total} steps, output every {every} steps")
+    critical = engine.critical_timestep()  # collective when distributed
+    ranks = f" on {comm.size} MPI ranks" if comm is not None else ""
+    say(f"[{case.case.name}] {n_particles} spheres{ranks}, dt = {engine.dt:.3e} s "
+        f"(critical {critical:.3e} s), {total} steps, output every {every} steps")
 
     energy_keys = list(engine.energy())
-    series = CsvSeries(out_dir / "series.csv",
-                       ["time", "step", "unbalanced_force_ratio", "coordination_number", *energy_keys],
-                       resume_time=engine.time if resume else None)
-    frames = PvdCollection(out_dir / "particles.pvd", engine.time if resume else None)
+    series = frames = None
+    if root:
+        series = CsvSeries(out_dir / "series.csv",
+                           ["time", "step", "unbalanced_force_ratio", "coordination_number", *energy_keys],
+                           resume_time=engine.time if resume else None)
+        frames = PvdCollection(out_dir / "particles.pvd", engine.time if resume else None)
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=engine.step_count)
     last_checkpoint = time.perf_counter()
 
     def record():
-        e = engine.energy()
-        series.append([engine.time, engine.step_count, diagnostics.unbalanced_force_ratio(engine),
-                       diagnostics.coordination_number(engine), *[e[k] for k in energy_keys]])
-        if case.output.vtk:
-            frames.add(engine.time, write_frame(out_dir / "frames", engine, engine.step_count))
+        e = engine.energy()  # the diagnostics and frames are collective when distributed
+        row = [engine.time, engine.step_count, diagnostics.unbalanced_force_ratio(engine),
+               diagnostics.coordination_number(engine), *[e[k] for k in energy_keys]]
+        paths = write_frame(out_dir / "frames", engine, engine.step_count) if case.output.vtk else None
+        if root:
+            series.append(row)
+            if paths is not None:
+                frames.add(engine.time, paths)
+
+    def checkpoint_due():  # rank 0's clock decides for every rank
+        due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
+        return comm.bcast(due, root=0) if comm is not None else due
 
     if not resume:
         record()
     while engine.step_count < total:
-        engine.run(min(every - engine.step_count % every, total - engine.step_count, PROGRESS_CHUNK))
+        _advance(engine, min(every - engine.step_count % every, total - engine.step_count, PROGRESS_CHUNK))
         if engine.step_count % every == 0 or engine.step_count == total:
             record()
         progress.update(engine.step_count, engine.time)
-        if time.perf_counter() - last_checkpoint > case.output.checkpoint_interval:
-            save_engine_checkpoint(engine, checkpoint)
+        if checkpoint_due():
+            _save_checkpoint(engine, checkpoint)
             last_checkpoint = time.perf_counter()
     progress.update(engine.step_count, engine.time, force=True)
-    save_engine_checkpoint(engine, checkpoint)
+    _save_checkpoint(engine, checkpoint)
+    particles = engine.global_particles()  # collective when distributed; all, in global-id order
+    e = engine.energy()
+    if not root:
+        return
     series.close()
     from de_domain.packing import save_packing
-    p = engine.particles
-    save_packing(out_dir / "final_packing.npz", p.pos[:p.n_owned], p.radius[:p.n_owned], time=engine.time)
+    mine = particles.owned
+    save_packing(out_dir / "final_packing.npz", particles.pos[mine], particles.radius[mine], time=engine.time)
     from cosim.plots import plot_panels
     plot_panels(out_dir / "series.csv", "time", [
         ("kinetic energy [J]", ["kinetic"], True),
@@ -224,7 +283,6 @@ def _run_root(case, engine, out_dir, resume):
         ("coordination number [-]", ["coordination_number"], False),
         ("energy [J]", ["dissipated", "work", "residual"], False),
     ], out_dir / "series.png", title=case.case.name)
-    e = engine.energy()
     scale = max(abs(e["dissipated"]) + abs(e["work"]), 1e-300)
     say(f"[{case.case.name}] done: t = {engine.time:.4e} s, kinetic energy {e['kinetic']:.3e} J, "
         f"energy balance residual {e['residual']:.3e} J "
@@ -233,4 +291,3 @@ def _run_root(case, engine, out_dir, resume):
         say(f"cosim: warning: [{case.case.name}] the energy balance is off by {100 * abs(e['residual']) / scale:.0f} % "
             "of work + dissipation (docs/design.md §2.15): the time step is likely too large for these contacts; "
             "try a smaller time.dt or time.safety_factor", file=sys.stderr)
-

@@ -3,8 +3,9 @@ exits 0; bad input exits 2 on every rank with one message; a run that diverges, 
 failure on one rank only, ends all ranks within seconds with the cause printed once.
 
 Each command runs under a timeout far above its normal time: a hang fails the test
-instead of stalling the suite. (The DEM itself still runs on rank 0; the DEM-under-MPI
-work distributes it.)
+instead of stalling the suite. (The ``dem`` kind distributes its DEM over the ranks,
+see test_dem_distributed_case.py; the coupled and direct shear kinds still run theirs
+on rank 0.)
 """
 import importlib.util
 import os
@@ -76,7 +77,7 @@ def test_bad_input_ends_every_rank_with_one_message(tmp_path):
 
 
 def test_an_error_on_one_rank_ends_all_ranks(tmp_path):
-    """Rank 1 alone fails while rank 0 runs the DEM: MPI_Abort ends both, at once."""
+    """Rank 1 alone fails before the (distributed) DEM run: MPI_Abort ends both, at once."""
     script = textwrap.dedent(f"""
         import sys
         from mpi4py import MPI
@@ -100,10 +101,11 @@ def test_an_error_on_one_rank_ends_all_ranks(tmp_path):
     ("coupled", ["--set", "dem.gravity=[0.0, 0.0, -1e300]"], "the run has diverged"),
 ])
 def test_a_diverging_run_ends_every_rank_with_its_cause(kind, sets, cause, tmp_path):
-    """A body force so large that the grains' state overflows: rank 0, where the DEM runs,
-    finds it at the next neighbour build, prints the cause, and MPI_Abort ends both ranks
-    (in the coupled case rank 1 is inside the FE step's collectives): exit 1, the cause
-    printed once, within seconds, and the rows written so far kept."""
+    """A body force so large that the grains' state overflows: the next neighbour build
+    finds it (``dem``: on every rank, rank 0 reports; coupled: on rank 0, where its DEM
+    runs, while rank 1 is inside the FE step's collectives), prints the cause, and
+    MPI_Abort ends both ranks: exit 1, the cause printed once, within seconds, and the
+    rows written so far kept."""
     out = tmp_path / "out"
     code, stdout, err, wall = mpirun("run", *SHORT_RUNS[kind], *sets, "--out", str(out))
     assert code == 1, stdout[-2000:] + err[-3000:]
