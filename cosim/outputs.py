@@ -76,11 +76,14 @@ def atomic_write_text(path, text):
 
 def save_engine_checkpoint(engine, path):
     """``engine.save_checkpoint`` to a temporary file, then rename: a crash never leaves
-    a broken checkpoint."""
+    a broken checkpoint. A distributed engine's: collective, rank 0 writes and renames."""
     path = Path(path)
     tmp = path.with_name(path.stem + ".tmp.npz")
-    engine.save_checkpoint(tmp)
-    os.replace(tmp, path)
+    engine.save_checkpoint(tmp)  # a distributed engine's ends with a barrier: the file is complete
+    if engine.domain is None or engine.domain.comm.rank == 0:
+        os.replace(tmp, path)
+    if engine.domain is not None:
+        engine.domain.comm.Barrier()
 
 
 def write_run_metadata(out_dir, case_path, resolved, seed):

@@ -462,10 +462,14 @@ class Engine:
 
     def wall_contact_particles(self, wall_index):
         """Indices of the particles touching plane wall ``wall_index`` in the last step
-        (a light subset of :meth:`contacts`)."""
+        (a light subset of :meth:`contacts`); a distributed engine's: their global ids,
+        gathered from every rank (collective)."""
         nl = self.neighbors
         live = (nl.w_fn > 0.0) & (nl.w_idx == wall_index)
-        return np.sort(nl.w_particle[live].astype(np.int64))
+        if self.domain is None:
+            return np.sort(nl.w_particle[live].astype(np.int64))
+        ids = self.domain.ids[nl.w_particle[live]]
+        return np.sort(np.concatenate(self.domain.comm.allgather(ids)))
 
     def memory_bytes(self):
         """nbytes of every per-particle and per-contact array the engine holds, by name."""

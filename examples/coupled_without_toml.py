@@ -14,7 +14,7 @@ Nothing else acts on either body, so the linear momentum of FE + DEM + the impul
 transit (collected by the DEM, not yet applied to the FE) is conserved to round-off:
 the script checks that, and that the plate really picked up the grains' momentum.
 
-Run (serial, or with the FE partitioned over ranks; the DEM runs on rank 0)::
+Run (serial, or with the FE and the DEM both spread over the ranks)::
 
     .venv/bin/python examples/coupled_without_toml.py [OUT_DIR]
     mpirun -n 2 .venv/bin/python examples/coupled_without_toml.py [OUT_DIR]
@@ -59,23 +59,22 @@ solid = build_solid("block.geo", 0.004, material={"E": 1.0e7, "nu": nu, "rho": 2
 # 2. The interface (collective): the plate's underside as a DEM facet mesh of material 0.
 interface = Interface(solid, ["bottom"], material=0)
 
-# 3. The grains, on rank 0 only: a cloud below the plate, all moving up at 0.5 m/s.
-engine = None
-if root:
-    grain = Material(density=2650.0, young=1.0e7, friction=0.5, restitution=0.5)
-    rng = np.random.default_rng(3)
-    positions, radii = random_cloud(rng.uniform(0.5e-3, 0.6e-3, 30), (0.001, 0.001, -0.004),
-                                    (0.009, 0.009, -0.0002), seed=3)
-    particles = Particles.from_spheres(positions, radii, materials=[grain],
-                                       velocities=np.tile([0.0, 0.0, 0.5], (len(radii), 1)))
-    engine = Engine(particles, [grain], facets=[interface.facets], gravity=(0.0, 0.0, 0.0), safety_factor=0.3)
+# 3. The grains (the same on every rank; with several ranks the engine keeps each rank's
+#    share): a cloud below the plate, all moving up at 0.5 m/s.
+grain = Material(density=2650.0, young=1.0e7, friction=0.5, restitution=0.5)
+rng = np.random.default_rng(3)
+positions, radii = random_cloud(rng.uniform(0.5e-3, 0.6e-3, 30), (0.001, 0.001, -0.004),
+                                (0.009, 0.009, -0.0002), seed=3)
+particles = Particles.from_spheres(positions, radii, materials=[grain],
+                                   velocities=np.tile([0.0, 0.0, 0.5], (len(radii), 1)))
+engine = Engine(particles, [grain], facets=[interface.facets], gravity=(0.0, 0.0, 0.0), safety_factor=0.3,
+                comm=comm if comm.size > 1 else None)
 
 # 4. Time steps: DT_FE = n DT_DE, both within their stability limits (0.3 of the critical ones).
-dem_dt = comm.bcast(engine.dt if root else None, root=0)
-fe_dt, dem_dt, subcycles = time_steps(dem_dt, 0.3 * solid.dt_critical)
+fe_dt, dem_dt, subcycles = time_steps(engine.dt, 0.3 * solid.dt_critical)
 solid.dt = fe_dt
+engine.dt = dem_dt
 if root:
-    engine.dt = dem_dt
     print(f"FE dt = {fe_dt:.3e} s, DEM dt = {dem_dt:.3e} s ({subcycles} DEM steps per FE step), "
           f"{comm.size} rank(s)")
 
@@ -88,13 +87,14 @@ totals = []
 
 
 def record():
-    fe, dem, transit = momentum(solid, engine, interface)   # collective; DEM parts are None off rank 0
+    fe, dem, transit = momentum(solid, engine, interface)   # collective
     fields.write()
+    paths = write_frame(out / "frames", engine, solid.step_count)   # collective; rank 0 writes
     if root:
         total = fe + dem + transit
         totals.append(total)
         series.append([solid.time, fe[2], dem[2], transit[2], total[2]])
-        frames.add(engine.time, write_frame(out / "frames", engine, solid.step_count))
+        frames.add(engine.time, paths)
         print(f"  t = {solid.time:.3e} s: momentum FE {fe[2]:.4e}, DEM {dem[2]:.4e}, in transit {transit[2]:+.1e}, "
               f"total {total[2]:.6e} N s")
 

@@ -1,5 +1,6 @@
 """Case kind ``coupled``: an FE solid and DEM particles that touch through a tagged
-FE boundary (docs/design.md §5), under ``mpirun -n N`` (FE on all ranks, DEM on rank 0).
+FE boundary (docs/design.md §5), under ``mpirun -n N`` (FE and DEM both distributed
+over all ranks; the DEM bit-identical to a serial one for the same interface motion).
 
 Per FE step (the coupling schedule, docs/design.md §5.3):
   1. the FE advances v^{n+½}, u^{n+1} with the interface force of the last window;
@@ -35,8 +36,8 @@ COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interfa
 
 
 def prepare(case, case_path, out_dir, resume):
-    """The FE solid (all ranks), the interface, the DEM engine (rank 0) and the two time
-    steps, each within its stability limit; collective."""
+    """The FE solid, the interface, the DEM engine (distributed when there are several
+    ranks) and the two time steps, each within its stability limit; collective."""
     from cosim.errors import CaseError
     if resume:
         raise CaseError(case_path, "--resume", True, "coupled runs cannot resume yet; run without --resume")
@@ -44,13 +45,13 @@ def prepare(case, case_path, out_dir, resume):
     solid = fe_app.build_solid(case, case_path)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
     interface = Interface(solid, case.coupling.interface, material)
-    engine = on_root(comm, lambda: dem_app.build_engine(case_path, case, dem_app.read_inputs(case, case_path),
-                                                        extra_facets=[interface.facets]))
-    dem_dt = comm.bcast(engine.dt if engine else None, root=0)
-    fe_dt, dem_dt, n_sub = time_steps(dem_dt, case.time.safety_factor * solid.dt_critical, case.coupling.subcycles)
+    built = comm.bcast(on_root(comm, lambda: dem_app.read_inputs(case, case_path)), root=0)
+    engine = dem_app.build_engine(case_path, case, built, extra_facets=[interface.facets],
+                                  comm=comm if comm.size > 1 else None)
+    fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical,
+                                      case.coupling.subcycles)
     solid.dt = fe_dt
-    if engine is not None:
-        engine.dt = dem_dt
+    engine.dt = dem_dt
     dem_app.check_steps(case_path, case.time, fe_dt)
     return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
 
@@ -73,19 +74,20 @@ def run(prepared):
     interval = case.output.interval or total * fe_dt / 20
     every = max(1, int(round(interval / fe_dt)))
     say(f"[{case.case.name}] FE dt = {fe_dt:.3e} s, DEM dt = {dem_dt:.3e} s ({n_sub} DEM steps per FE step), "
-        f"{total} FE steps, output every {every}")
+        f"{total} FE steps, output every {every}"
+        + (f", FE and DEM on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
 
     series = CsvSeries(out_dir / "series.csv", COLUMNS) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd") if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
     fields = FieldWriter(solid, out_dir / "fields")
     progress = ProgressLine(case.case.name, total, case.output.progress_interval)
-    record(solid, engine, interface, series, frames, out_dir)
+    record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
     while solid.step_count < total:
         for _ in range(min(PROGRESS_CHUNK, every - solid.step_count % every, total - solid.step_count)):
             coupled_step(solid, engine, interface, n_sub)
         if solid.step_count % every == 0 or solid.step_count == total:
-            record(solid, engine, interface, series, frames, out_dir)
+            record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
             fields.write()
         progress.update(solid.step_count, solid.time)
     progress.update(solid.step_count, solid.time, force=True)
@@ -110,34 +112,43 @@ def coupled_step(solid, engine, interface, subcycles):
     """One FE step and its DEM window, docs/design.md §5.3, steps 1–4."""
     solid.step()
     interface.send_motion()
-    if engine is not None:
-        engine.run(subcycles)
+    dem_app.advance(engine, subcycles)
     interface.receive_forces(solid.dt)
 
 
 def momentum(solid, engine, interface):
     """Linear momentum (N s) of the FE nodes, of the particles and of the impulse in transit."""
     owned = slice(0, solid.n_owned_nodes)
-    fe = mpi_comm().allreduce(np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
-    if engine is None:
-        return fe, None, None
+    comm = mpi_comm()
+    fe = _rank_order_sum(comm, np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
     p = engine.particles
-    return fe, np.sum(p.mass[:p.n_owned, None] * p.vel[:p.n_owned], axis=0), interface.pending_impulse()
+    mine = p.owned
+    de = _rank_order_sum(comm, np.sum(p.mass[mine, None] * p.vel[mine], axis=0))
+    return fe, de, interface.pending_impulse()
 
 
-def record(solid, engine, interface, series, frames, out_dir):
+def _rank_order_sum(comm, part):
+    """Σ over ranks of ``part``, in rank order (the same bits on every rank)."""
+    total = np.zeros_like(part)
+    for value in comm.allgather(part):
+        total = total + value
+    return total
+
+
+def record(solid, engine, interface, series, frames, out_dir, vtk):
     fe_app.check_finite(solid)
     fe, de, transit = momentum(solid, engine, interface)
     nodes = interface.owned_nodes
     comm = mpi_comm()
     uz = comm.allreduce(float(np.sum(solid.displacement[nodes, 2])))
     count = comm.allreduce(len(nodes))
-    if engine is None:
-        return
     from de_domain import diagnostics
     from de_domain.io import write_frame
     force = interface.facets.vertex_impulse.sum(axis=0) / solid.dt
-    series.append([solid.time, solid.step_count, *force, uz / count, *fe, *de, *transit, *(fe + de + transit),
-                   diagnostics.unbalanced_force_ratio(engine), diagnostics.coordination_number(engine)])
+    row = [solid.time, solid.step_count, *force, uz / count, *fe, *de, *transit, *(fe + de + transit),
+           diagnostics.unbalanced_force_ratio(engine), diagnostics.coordination_number(engine)]  # collective
+    paths = write_frame(out_dir / "frames", engine, solid.step_count) if vtk else None
+    if series is not None:
+        series.append(row)
     if frames is not None:
-        frames.add(engine.time, write_frame(out_dir / "frames", engine, solid.step_count))
+        frames.add(engine.time, paths)

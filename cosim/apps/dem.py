@@ -9,7 +9,6 @@ file for NaN/inf values, lengths and initial overlaps.
 """
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
@@ -150,7 +149,14 @@ def check_steps(case_path, time_section, dt):
 
 def build_engine(case_path, case, built, extra_facets=(), comm=None):
     """The Engine of the case's [dem] section and the ``built`` inputs (read_inputs);
-    with ``comm``, distributed over its ranks (collective; the same ``built`` on every rank)."""
+    with ``comm``, distributed over its ranks (collective; the same ``built`` on every rank).
+    Fewer particles than ranks cannot be decomposed: a CaseError on every rank alike."""
+    n = len(built["radii"])
+    if comm is not None and n < comm.size:
+        source = "file" if case.dem.particles.file else "count"
+        raise CaseError(case_path, f"dem.particles.{source}", n,
+                        f"{n} particle(s) cannot be spread over {comm.size} MPI ranks (each rank owns a slab of "
+                        f"particles); run with at most {n} ranks (mpirun -n {max(n, 1)}) or without mpirun")
     try:
         return _engine(case, built, extra_facets, comm)
     except ValueError as exc:  # the de_domain constructors check their own inputs
@@ -188,21 +194,7 @@ def run(prepared):
     mpi_comm().Barrier()
 
 
-def _save_checkpoint(engine, path):
-    """``save_engine_checkpoint``; a distributed engine's (collective: rank 0 writes the
-    gathered state to a temporary file, then renames it)."""
-    if engine.domain is None:
-        save_engine_checkpoint(engine, path)
-        return
-    path = Path(path)
-    tmp = path.with_name(path.stem + ".tmp.npz")
-    engine.save_checkpoint(tmp)  # ends with a barrier: the file is complete
-    if engine.domain.comm.rank == 0:
-        os.replace(tmp, path)
-    engine.domain.comm.Barrier()
-
-
-def _advance(engine, nsteps):
+def advance(engine, nsteps):
     """``engine.run(nsteps)``. A distributed engine checks for a diverged state
     collectively (de_domain.distributed.check_finite) and raises the same
     FloatingPointError on every rank: a RunFailed, which rank 0 reports once."""
@@ -259,15 +251,15 @@ def _run_engine(case, engine, out_dir, resume):
     if not resume:
         record()
     while engine.step_count < total:
-        _advance(engine, min(every - engine.step_count % every, total - engine.step_count, PROGRESS_CHUNK))
+        advance(engine, min(every - engine.step_count % every, total - engine.step_count, PROGRESS_CHUNK))
         if engine.step_count % every == 0 or engine.step_count == total:
             record()
         progress.update(engine.step_count, engine.time)
         if checkpoint_due():
-            _save_checkpoint(engine, checkpoint)
+            save_engine_checkpoint(engine, checkpoint)
             last_checkpoint = time.perf_counter()
     progress.update(engine.step_count, engine.time, force=True)
-    _save_checkpoint(engine, checkpoint)
+    save_engine_checkpoint(engine, checkpoint)
     particles = engine.global_particles()  # collective when distributed; all, in global-id order
     e = engine.energy()
     if not root:

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.apps import on_root
 from cosim.case import resolve_path
 from cosim.errors import CaseError
 from cosim.outputs import (
@@ -84,7 +85,7 @@ def curve_of(sp):
 
 def prepare(case, case_path, out_dir, resume):
     """Everything that can fail on input, before any computation, on rank 0 (where the
-    DEM runs): the packing file or the sieve curve, the checkpoint to resume from, and a
+    specimen is made): the packing file or the sieve curve, the checkpoint to resume from, and a
     given time step against the critical step of the smallest grain. None elsewhere."""
     if not is_root():
         return None
@@ -215,7 +216,7 @@ class ShearTest:
         self.engine = engine
         self.bottom, self.plate = engine.walls
         self.lower, self.upper = engine.facets
-        radii = engine.particles.radius
+        radii = self.radii = engine.global_particles().radius  # every grain's, by global id (collective)
         self.solid_volume = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
         self.d50 = mass_median_diameter(radii)
         self.height0 = height
@@ -233,8 +234,9 @@ class ShearTest:
         return ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
 
     @classmethod
-    def build(cls, case, positions, radii, height):
-        """The specimen in the split box (module docstring, step 2)."""
+    def build(cls, case, positions, radii, height, comm=None):
+        """The specimen in the split box (module docstring, step 2); with ``comm``, the
+        DEM spread over its ranks (collective)."""
         from de_domain import Engine, FacetMesh, Particles, PlaneWall
         mats, sand, wall, plate = materials(case)
         geometry = cls.box_geometry(case, height)
@@ -244,7 +246,7 @@ class ShearTest:
         dem = case.dem
         engine = Engine(particles, mats, walls=walls, facets=facets, contact_law=dem.contact_law, gravity=dem.gravity,
                         dt=case.time.dt, safety_factor=case.time.safety_factor, local_damping=dem.local_damping,
-                        viscous_damping=dem.viscous_damping)
+                        viscous_damping=dem.viscous_damping, comm=comm)
         return cls(case, engine, height)
 
     # ---------------------------------------------------------------- measurements
@@ -288,7 +290,7 @@ class ShearTest:
     # ---------------------------------------------------------------- servo step
     def update_stiffness(self):
         from cosim.lab.shear_box import plate_contact_stiffness
-        self.stiffness = plate_contact_stiffness(self.engine.wall_contact_particles(1), self.engine.particles.radius,
+        self.stiffness = plate_contact_stiffness(self.engine.wall_contact_particles(1), self.radii,
                                                  self.young_grain, self.young_plate)
 
     def step(self, target):
@@ -307,7 +309,8 @@ class ShearTest:
         vz = float(np.clip(vz + self.v_integral, -ds.servo_max_velocity, ds.servo_max_velocity))
         self.plate.velocity = np.array([self.shear_velocity, 0.0, vz])
         self.upper.velocity = np.array([self.shear_velocity, 0.0, 0.0])
-        self.engine.run(ds.servo_interval)
+        from cosim.apps.dem import advance
+        advance(self.engine, ds.servo_interval)
 
     # ---------------------------------------------------------------- 3. consolidation
     def consolidate(self, log):
@@ -345,12 +348,15 @@ def _record(test, sums, n, z0):
 
 # --------------------------------------------------------------------------- the run
 def run(prepared, specimen_cache=None):
-    """The test on rank 0; the other ranks wait (the DEM is not domain-decomposed yet)."""
+    """The test. Under ``mpirun -n N`` (N > 1) the specimen is made on rank 0 and the
+    consolidation and shear DEM is spread over all ranks (bit-identical to one rank)."""
     case = prepared.case
     write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
-    if is_root():
-        _run_root(case, prepared.out_dir, prepared.built, specimen_cache, prepared.resume)
-    mpi_comm().Barrier()
+    comm = mpi_comm()
+    if comm.size > 1 or is_root():
+        _run_test(case, prepared.out_dir, prepared.built, specimen_cache, prepared.resume,
+                  comm if comm.size > 1 else None)
+    comm.Barrier()
 
 
 def _save_checkpoint(out_dir, test, loop):
@@ -358,13 +364,14 @@ def _save_checkpoint(out_dir, test, loop):
     files and renamed; the JSON names the step it belongs to."""
     state = {**{k: getattr(test, k) for k in ShearTest.SERVO_STATE}, **loop,
              "x0": test.x0.tolist(), "height0": test.height0, "step": test.engine.step_count}
-    save_engine_checkpoint(test.engine, out_dir / CHECKPOINT)
-    atomic_write_text(out_dir / SHEAR_STATE, json.dumps(state, default=lambda x: x.item()))
+    save_engine_checkpoint(test.engine, out_dir / CHECKPOINT)  # collective when distributed
+    if is_root():
+        atomic_write_text(out_dir / SHEAR_STATE, json.dumps(state, default=lambda x: x.item()))
 
 
-def _load_checkpoint(case, out_dir):
+def _load_checkpoint(case, out_dir, comm=None):
     from de_domain import Engine
-    engine = Engine.load_checkpoint(out_dir / CHECKPOINT)
+    engine = Engine.load_checkpoint(out_dir / CHECKPOINT, comm=comm)
     state = json.loads((out_dir / SHEAR_STATE).read_text())
     if state["step"] != engine.step_count:
         raise CaseError(out_dir / SHEAR_STATE, "step", state["step"],
@@ -375,7 +382,9 @@ def _load_checkpoint(case, out_dir):
     return test, state
 
 
-def _run_root(case, out_dir, built, specimen_cache, resume=False):
+def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
+    """The test on one rank (``comm`` None) or, collectively, on all ranks of ``comm``
+    (the specimen made on rank 0; files written by rank 0)."""
     from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
     from cosim.lab.shear_report import plot_run, read_series, summarize
     name, ds = case.case.name, case.direct_shear
@@ -383,18 +392,21 @@ def _run_root(case, out_dir, built, specimen_cache, resume=False):
     t_start = time.perf_counter()
 
     if resume:
-        test, loop = _load_checkpoint(case, out_dir)
+        test, loop = _load_checkpoint(case, out_dir, comm)
         engine = test.engine
         specimen_info = loop["specimen_info"]
         log(f"resumed at step {engine.step_count}, δ = {test.displacement * 1e3:.3f} mm")
     else:
         # 1. specimen
-        positions, radii, height, specimen_info = make_specimen(case, built, out_dir, specimen_cache)
+        specimen = lambda: make_specimen(case, built, out_dir, specimen_cache)  # noqa: E731
+        positions, radii, height, specimen_info = specimen() if comm is None else comm.bcast(
+            on_root(comm, specimen), root=0)
         # 2. shear box
-        test = ShearTest.build(case, positions, radii, height)
+        test = ShearTest.build(case, positions, radii, height, comm)
         engine = test.engine
+        ranks = f", DEM on {comm.size} MPI ranks" if comm is not None else ""
         log(f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
-            f"{engine.particles.n} grains (d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s")
+            f"{test.radii.size} grains (d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s{ranks}")
         # 3. consolidation
         t_consolidation = time.perf_counter()
         consolidation_steps = test.consolidate(log)
@@ -414,7 +426,8 @@ def _run_root(case, out_dir, built, specimen_cache, resume=False):
         (ds.shear_distance + (math.log(50.0) - 1.0) * ds.ramp_distance) / (v * engine.dt)))
     log(f"shearing at v = {v:.4g} m/s (inertial number I = {inertial:.2e}) to δ = {ds.shear_distance * 1e3:.2f} mm: "
         f"about {total_steps - loop['consolidation_steps']} steps")
-    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None)
+    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None) \
+        if is_root() else None
     frames = _frames(case, out_dir, loop, engine.time if resume else None)
     if not resume:
         frames(engine, 0)
@@ -433,8 +446,9 @@ def _run_root(case, out_dir, built, specimen_cache, resume=False):
         n += 1
         delta = test.displacement
         if delta >= next_row or delta >= ds.shear_distance:
-            row = _record(test, sums, n, z0)
-            series.append(row)
+            row = _record(test, sums, n, z0)  # collective when distributed
+            if series is not None:
+                series.append(row)
             if delta > ds.ramp_distance:
                 servo_errors.append(abs(row[3] - ds.normal_stress) / ds.normal_stress)
             sums, n = np.zeros(3), 0
@@ -443,7 +457,8 @@ def _run_root(case, out_dir, built, specimen_cache, resume=False):
         progress.update(engine.step_count, engine.time)
         if delta >= ds.shear_distance:
             break
-        if time.perf_counter() - last_checkpoint > case.output.checkpoint_interval:
+        due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
+        if due if comm is None else comm.bcast(due, root=0):  # rank 0's clock decides for all
             now = time.perf_counter()
             loop.update(next_row=next_row, sums=sums.tolist(), n=n, servo_errors=servo_errors,
                         wall_clock_shear_s=loop["wall_clock_shear_s"] + now - t0,
@@ -451,6 +466,8 @@ def _run_root(case, out_dir, built, specimen_cache, resume=False):
             t0 = t_start = last_checkpoint = now
             _save_checkpoint(out_dir, test, loop)
     progress.update(engine.step_count, engine.time, force=True)
+    if not is_root():
+        return None
     series.close()
     shear_wall_clock = loop["wall_clock_shear_s"] + time.perf_counter() - t0
     consolidation_steps, e_consolidated = loop["consolidation_steps"], loop["e_consolidated"]
@@ -462,7 +479,7 @@ def _run_root(case, out_dir, built, specimen_cache, resume=False):
     after = data["shear_displacement"] > ds.ramp_distance
     lw_ratio = lambda a, b: float(np.mean(a[after]) / np.mean(b[after]))  # noqa: E731
     summary.update({
-        "case": name, "grains": int(engine.particles.n), "d50": test.d50, "sample_height": height,
+        "case": name, "grains": int(test.radii.size), "d50": test.d50, "sample_height": height,
         "normal_stress": ds.normal_stress, "shear_velocity": v, "inertial_number": inertial, "dt": engine.dt,
         "steps_consolidation": consolidation_steps, "steps_shear": int(engine.step_count - consolidation_steps),
         "void_ratio_consolidated": e_consolidated, "void_ratio_end": float(data["void_ratio"][-1]),
@@ -523,12 +540,16 @@ def _frames(case, out_dir, loop, resume_time=None, count=10):
         return lambda engine, delta: None
     from cosim.outputs import PvdCollection
     from de_domain.io import write_frame
-    (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
-    index = PvdCollection(Path(out_dir) / "particles.pvd", resume_time)
+    index = None
+    if is_root():
+        (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
+        index = PvdCollection(Path(out_dir) / "particles.pvd", resume_time)
     spacing = case.direct_shear.shear_distance / count
 
-    def write(engine, delta):
+    def write(engine, delta):  # collective when the engine is distributed
         if delta >= loop["next_frame"] - 1e-12:
-            index.add(engine.time, write_frame(out_dir / "frames", engine, engine.step_count))
+            paths = write_frame(out_dir / "frames", engine, engine.step_count)
+            if index is not None:
+                index.add(engine.time, paths)
             loop["next_frame"] += spacing
     return write

@@ -3,9 +3,9 @@ exits 0; bad input exits 2 on every rank with one message; a run that diverges, 
 failure on one rank only, ends all ranks within seconds with the cause printed once.
 
 Each command runs under a timeout far above its normal time: a hang fails the test
-instead of stalling the suite. (The ``dem`` kind distributes its DEM over the ranks,
-see test_dem_distributed_case.py; the coupled and direct shear kinds still run theirs
-on rank 0.)
+instead of stalling the suite. (The ``dem`` and ``coupled`` kinds distribute their DEM
+over the ranks, see test_dem_distributed_case.py and tests/coupling; the direct shear
+kind still runs its DEM on rank 0.)
 """
 import importlib.util
 import os
@@ -76,6 +76,15 @@ def test_bad_input_ends_every_rank_with_one_message(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_fewer_particles_than_ranks_is_bad_input_on_every_rank(tmp_path):
+    """A DEM that cannot be spread over the ranks: exit 2, one message naming the key."""
+    code, out, err, _ = mpirun("run", str(RUNS / "demo_dem_settling.toml"), "--set", "dem.particles.count=2",
+                               "--out", str(tmp_path / "out"), n=3)
+    assert code == 2, out + err
+    assert err.count("cosim: error:") == 1 and "dem.particles.count" in err and "3 MPI ranks" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_error_on_one_rank_ends_all_ranks(tmp_path):
     """Rank 1 alone fails before the (distributed) DEM run: MPI_Abort ends both, at once."""
     script = textwrap.dedent(f"""
@@ -101,11 +110,10 @@ def test_an_error_on_one_rank_ends_all_ranks(tmp_path):
     ("coupled", ["--set", "dem.gravity=[0.0, 0.0, -1e300]"], "the run has diverged"),
 ])
 def test_a_diverging_run_ends_every_rank_with_its_cause(kind, sets, cause, tmp_path):
-    """A body force so large that the grains' state overflows: the next neighbour build
-    finds it (``dem``: on every rank, rank 0 reports; coupled: on rank 0, where its DEM
-    runs, while rank 1 is inside the FE step's collectives), prints the cause, and
-    MPI_Abort ends both ranks: exit 1, the cause printed once, within seconds, and the
-    rows written so far kept."""
+    """A body force so large that the grains' state overflows: the next neighbour build of
+    the distributed DEM finds it on all ranks together (de_domain.distributed.check_finite),
+    and every rank ends with exit 1, the cause printed once, within seconds, and the rows
+    written so far kept."""
     out = tmp_path / "out"
     code, stdout, err, wall = mpirun("run", *SHORT_RUNS[kind], *sets, "--out", str(out))
     assert code == 1, stdout[-2000:] + err[-3000:]

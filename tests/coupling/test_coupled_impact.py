@@ -72,12 +72,19 @@ def test_momentum_of_fe_dem_and_impulse_in_transit_is_conserved_to_round_off(one
         assert drift.max() < 1e-12 * p0, axis
 
 
-def test_two_ranks_give_the_one_rank_result(one_rank, tmp_path):
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_more_ranks_give_the_one_rank_result_and_conserve_momentum(one_rank, tmp_path, ranks):
+    """FE and DEM both spread over the ranks: the same history, the same closed books."""
     case, s1 = one_rank
-    s2, _ = run(case, tmp_path / "two", mpi=2)
+    s2, out = run(case, tmp_path / f"ranks{ranks}", mpi=ranks)
+    assert f"FE and DEM on {ranks} MPI ranks" in out
     for key in ("momentum_fe_z", "momentum_dem_z", "interface_displacement_z"):
         # agreement to the CSV's 10 significant digits, up to summation-order round-off
         np.testing.assert_allclose(s2[key], s1[key], rtol=1e-8, atol=1e-9 * np.abs(s1[key]).max(), err_msg=key)
+    p0 = s2["momentum_dem_z"][0]
+    for axis in "xyz":
+        drift = np.abs(s2[f"momentum_total_{axis}"] - s2[f"momentum_total_{axis}"][0])
+        assert drift.max() < 1e-12 * p0, axis
 
 
 def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
