@@ -227,7 +227,7 @@ def _box_walls(s, plate_z):
     return walls
 
 
-def _engine(s, pos, radii, vel, angvel, friction, plate_z, gravity, dt=None):
+def _engine(s, pos, radii, vel, angvel, friction, plate_z, gravity, dt=None, comm=None):
     from . import Engine, Particles
     mats = _materials(s, friction)
     gravity = tuple(np.asarray(gravity, float) / s.density_scale)  # real weights (module docstring)
@@ -235,7 +235,7 @@ def _engine(s, pos, radii, vel, angvel, friction, plate_z, gravity, dt=None):
     if angvel is not None:
         p.angvel[:] = angvel
     return Engine(p, mats, walls=_box_walls(s, plate_z), contact_law=s.contact_law, gravity=gravity,
-                  dt=dt, safety_factor=s.safety_factor, local_damping=s.local_damping)
+                  dt=dt, safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm)
 
 
 def _plate_stress(engine, s):
@@ -248,8 +248,13 @@ def _unbalanced(engine):
 
 
 def _rebuild(engine, s, friction, gravity):
-    p = engine.particles
-    return _engine(s, p.pos, p.radius, p.vel, p.angvel, friction, engine.walls[5].point[2], gravity, engine.dt)
+    p = engine.global_particles()
+    return _engine(s, p.pos, p.radius, p.vel, p.angvel, friction, engine.walls[5].point[2], gravity, engine.dt,
+                   _comm(engine))
+
+
+def _comm(engine):
+    return engine.domain.comm if engine.domain is not None else None
 
 
 def _say(log, text):
@@ -335,9 +340,10 @@ def _seat_plate(engine, s, log, label, max_steps):
 
 
 # --------------------------------------------------------------------------- methods
-def under_compaction(diameters, s: GenerationSettings, log=None):
+def under_compaction(diameters, s: GenerationSettings, log=None, comm=None):
     """Multi-layer under-compaction (module docstring). ``diameters``: all grains of the
-    specimen (their volume fixes V_s). Returns a :class:`Specimen`."""
+    specimen (their volume fixes V_s). Returns a :class:`Specimen`. With ``comm``, every
+    stage's DEM is spread over its ranks (collective; the same specimen, bit for bit)."""
     rng = np.random.default_rng(s.seed)
     L, H = s.box_length, s.height
     n_layers = s.layers or layer_count(s.void_ratio, s.cloud_solid_fraction, H, float(np.max(diameters)))
@@ -367,12 +373,13 @@ def under_compaction(diameters, s: GenerationSettings, log=None):
         vel = np.zeros((len(radii) + len(r_new), 3))
         angvel = np.zeros_like(vel)
         if engine is not None:
-            vel[: len(radii)] = engine.particles.vel
-            angvel[: len(radii)] = engine.particles.angvel
+            grains = engine.global_particles()
+            vel[: len(radii)] = grains.vel
+            angvel[: len(radii)] = grains.angvel
         pos = np.concatenate([pos, new_pos])
         radii = np.concatenate([radii, r_new])
         plate_z = float(np.max(new_pos[:, 2] + r_new)) + 1e-4
-        engine = _engine(s, pos, radii, vel, angvel, start_friction, plate_z, s.gravity, dt)
+        engine = _engine(s, pos, radii, vel, angvel, start_friction, plate_z, s.gravity, dt, comm)
         label = f"layer {k}/{n_layers}"
         engine, friction, n = _compact_to(engine, s, z_k, start_friction, log, label, s.max_steps_per_layer)
         steps += n
@@ -383,17 +390,24 @@ def under_compaction(diameters, s: GenerationSettings, log=None):
         _say(log, f"{label}: {len(r_new)} grains, plate at {engine.walls[5].point[2] * 1e3:.3f} mm "
                   f"(target {z_k * 1e3:.3f}), stress {_plate_stress(engine, s):.3g} Pa, "
                   f"unbalanced force {uf:.3g}, {n} steps")
-        pos, radii = engine.particles.pos.copy(), engine.particles.radius.copy()
+        grains = engine.global_particles()
+        pos, radii = grains.pos.copy(), grains.radius.copy()
     engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
     steps += n
+    return _specimen(engine, s, "under_compaction", steps, stages)
+
+
+def _specimen(engine, s, method, steps, stages):
+    """The :class:`Specimen` in ``engine`` (collective when distributed)."""
+    grains = engine.global_particles()
     height = float(engine.walls[5].point[2])
-    e = void_ratio_of_box(L * L, height, engine.particles.radius)
-    return Specimen(engine.particles.pos.copy(), engine.particles.radius.copy(), height, e,
-                    "under_compaction", steps, stages)
+    e = void_ratio_of_box(s.box_length * s.box_length, height, grains.radius)
+    return Specimen(grains.pos.copy(), grains.radius.copy(), height, e, method, steps, stages)
 
 
-def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, steps_per_increment=100):
-    """Grow the grains from reduced radii to full size in the closed box (module docstring)."""
+def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, steps_per_increment=100, comm=None):
+    """Grow the grains from reduced radii to full size in the closed box (module docstring);
+    ``comm`` as for :func:`under_compaction`."""
     L, H = s.box_length, s.height
     radii_full = 0.5 * np.asarray(diameters, float)
     solid_fraction = np.sum(4 / 3 * np.pi * radii_full**3) / (L * L * H)
@@ -409,14 +423,14 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
     engine = None
     for k in range(1, increments + 1):
         f = shrink + (1.0 - shrink) * k / increments
-        engine = _engine(s, pos, radii_full * f, vel, angvel, friction, H, (0.0, 0.0, 0.0), dt)
+        engine = _engine(s, pos, radii_full * f, vel, angvel, friction, H, (0.0, 0.0, 0.0), dt, comm)
         engine.run(steps_per_increment)
         steps += steps_per_increment
-        pos, vel, angvel = engine.particles.pos.copy(), engine.particles.vel.copy(), engine.particles.angvel.copy()
+        pos, vel, angvel = _motion(engine)
     stages = []
     # equilibrium without gravity, then with gravity
     for label, g in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
-        engine = _engine(s, pos, radii_full, vel, angvel, friction, H, g, dt)
+        engine = _engine(s, pos, radii_full, vel, angvel, friction, H, g, dt, comm)
         n = 0
         while n < s.max_steps_per_layer:
             engine.run(s.check_every)
@@ -428,13 +442,16 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
                        "unbalanced_force": _unbalanced(engine), "steps": n})
         _say(log, f"radius expansion ({label}): plate stress {_plate_stress(engine, s):.3g} Pa, "
                   f"unbalanced force {_unbalanced(engine):.3g}, {n} steps")
-        pos, vel, angvel = engine.particles.pos.copy(), engine.particles.vel.copy(), engine.particles.angvel.copy()
+        pos, vel, angvel = _motion(engine)
     engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
     steps += n
-    height = float(engine.walls[5].point[2])
-    e = void_ratio_of_box(L * L, height, engine.particles.radius)
-    return Specimen(engine.particles.pos.copy(), engine.particles.radius.copy(), height, e,
-                    "radius_expansion", steps, stages)
+    return _specimen(engine, s, "radius_expansion", steps, stages)
+
+
+def _motion(engine):
+    """Copies of every grain's position, velocity and angular velocity (collective when distributed)."""
+    grains = engine.global_particles()
+    return grains.pos.copy(), grains.vel.copy(), grains.angvel.copy()
 
 
 def _critical_dt_all(s, diameters):
@@ -444,10 +461,11 @@ def _critical_dt_all(s, diameters):
     return math.sqrt(m / (2.0 * s.sand.young * r))
 
 
-def generate(method, diameters, settings, log=None):
-    """Dispatch to :func:`under_compaction` or :func:`radius_expansion`."""
+def generate(method, diameters, settings, log=None, comm=None):
+    """Dispatch to :func:`under_compaction` or :func:`radius_expansion` (with ``comm``: the
+    DEM of every stage spread over its ranks, collective)."""
     if method == "under_compaction":
-        return under_compaction(diameters, settings, log)
+        return under_compaction(diameters, settings, log, comm)
     if method == "radius_expansion":
-        return radius_expansion(diameters, settings, log)
+        return radius_expansion(diameters, settings, log, comm=comm)
     raise ValueError(f"unknown generation method {method!r}; allowed: under_compaction, radius_expansion")

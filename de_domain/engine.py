@@ -493,6 +493,8 @@ class Engine:
 
     def contacts(self):
         """Active contacts of the last step (forces at tⁿ; positions are the current ones).
+        A distributed engine's are this rank's: indices are rows of ``particles`` (global
+        ids: ``domain.ids[i]``), and a pair between two ranks is listed on both.
 
         Sphere pairs: ``i``, ``j``, ``force`` (on i), ``overlap``, ``normal`` (i → j),
         ``branch`` (x_j − x_i), ``point`` (overlap midpoint).

@@ -44,7 +44,6 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.apps import on_root
 from cosim.case import resolve_path
 from cosim.errors import CaseError
 from cosim.outputs import (
@@ -147,8 +146,9 @@ def read_specimen(path):
 
 
 # --------------------------------------------------------------------------- 1. specimen
-def make_specimen(case, built, out_dir, cache=None):
-    """Load or generate the specimen; returns (positions, radii, height, info dict)."""
+def make_specimen(case, built, out_dir, cache=None, comm=None):
+    """Load or generate the specimen; returns (positions, radii, height, info dict). With
+    ``comm``, collective: the generation's DEM is spread over the ranks, rank 0 writes."""
     from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
     from de_domain.packing import save_packing
     sp, ds = case.specimen, case.direct_shear
@@ -180,12 +180,13 @@ def make_specimen(case, built, out_dir, cache=None):
         max_steps_per_layer=sp.max_steps_per_layer,
         seed=case.case.seed)
     t0 = time.perf_counter()
-    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"))
+    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm)
     wall_clock = time.perf_counter() - t0
     ok = abs(specimen.void_ratio - sp.void_ratio) <= sp.tolerance
     say(f"[{name}] specimen: e = {specimen.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
         f"{'OK' if ok else 'MISSED'}), h = {specimen.height * 1e3:.3f} mm, {specimen.steps} steps, {wall_clock:.0f} s")
-    for target in [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else []):
+    targets = [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else [])
+    for target in targets if is_root() else []:
         target.parent.mkdir(parents=True, exist_ok=True)
         save_packing(target, specimen.positions, specimen.radii, height=specimen.height,
                      void_ratio=specimen.void_ratio, method=specimen.method)
@@ -348,8 +349,8 @@ def _record(test, sums, n, z0):
 
 # --------------------------------------------------------------------------- the run
 def run(prepared, specimen_cache=None):
-    """The test. Under ``mpirun -n N`` (N > 1) the specimen is made on rank 0 and the
-    consolidation and shear DEM is spread over all ranks (bit-identical to one rank)."""
+    """The test. Under ``mpirun -n N`` (N > 1) the DEM of the specimen generation, the
+    consolidation and the shear is spread over all ranks (bit-identical to one rank)."""
     case = prepared.case
     write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
     comm = mpi_comm()
@@ -384,7 +385,7 @@ def _load_checkpoint(case, out_dir, comm=None):
 
 def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
     """The test on one rank (``comm`` None) or, collectively, on all ranks of ``comm``
-    (the specimen made on rank 0; files written by rank 0)."""
+    (files written by rank 0)."""
     from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
     from cosim.lab.shear_report import plot_run, read_series, summarize
     name, ds = case.case.name, case.direct_shear
@@ -398,9 +399,9 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
         log(f"resumed at step {engine.step_count}, δ = {test.displacement * 1e3:.3f} mm")
     else:
         # 1. specimen
-        specimen = lambda: make_specimen(case, built, out_dir, specimen_cache)  # noqa: E731
-        positions, radii, height, specimen_info = specimen() if comm is None else comm.bcast(
-            on_root(comm, specimen), root=0)
+        if comm is not None:
+            built = comm.bcast(built, root=0)  # prepare() read the inputs on rank 0
+        positions, radii, height, specimen_info = make_specimen(case, built, out_dir, specimen_cache, comm)
         # 2. shear box
         test = ShearTest.build(case, positions, radii, height, comm)
         engine = test.engine
