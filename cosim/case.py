@@ -503,8 +503,6 @@ _UNUSED = [
      "a direct_shear run writes direct_shear.rows CSV rows over the shear distance; set rows instead"),
     ("output", ("vtk",), lambda c, s: c.case.kind == "fe",
      "an fe run always writes its fields as XDMF; vtk is for particles"),
-    ("output", ("checkpoint_interval",), lambda c, s: c.case.kind == "coupled",
-     "coupled runs write no checkpoints yet"),
     ("dem.particles", ("file",), lambda c, s: s.source == "cloud", "source = 'cloud' reads no file"),
     ("dem.particles", ("count", "box", "radius"), lambda c, s: s.source == "file",
      "source = 'file' takes the spheres from the file"),

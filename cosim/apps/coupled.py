@@ -17,6 +17,8 @@ interface facets).
 from __future__ import annotations
 
 import math
+import time
+from pathlib import Path
 
 import numpy as np
 
@@ -24,7 +26,16 @@ from cosim.apps import dem as dem_app
 from cosim.apps import fe as fe_app
 from cosim.apps import on_root
 from cosim.interface import Interface
-from cosim.outputs import CsvSeries, ProgressLine, PvdCollection, is_root, mpi_comm, say, write_run_metadata
+from cosim.outputs import (
+    CsvSeries,
+    ProgressLine,
+    PvdCollection,
+    is_root,
+    mpi_comm,
+    save_engine_checkpoint,
+    say,
+    write_run_metadata,
+)
 
 PROGRESS_CHUNK = 20  # FE steps between checks of the progress line
 
@@ -35,25 +46,53 @@ COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interfa
            "momentum_total_z", "unbalanced_force_ratio", "coordination_number"]
 
 
+def checkpoint_paths(out_dir, comm):
+    """(DEM checkpoint: one file for all ranks, this rank's FE checkpoint)."""
+    return Path(out_dir) / "checkpoint.npz", Path(out_dir) / f"checkpoint.fe.rank{comm.rank}of{comm.size}.npz"
+
+
 def prepare(case, case_path, out_dir, resume):
     """The FE solid, the interface, the DEM engine (distributed when there are several
-    ranks) and the two time steps, each within its stability limit; collective."""
+    ranks) and the two time steps, each within its stability limit; or, to resume, the
+    FE state of this rank count and the DEM state from the checkpoints; collective."""
     from cosim.errors import CaseError
-    if resume:
-        raise CaseError(case_path, "--resume", True, "coupled runs cannot resume yet; run without --resume")
     comm = mpi_comm()
+    dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
+    found = dem_checkpoint.exists() and fe_checkpoint.exists()
+    if resume and comm.allgather(found).count(False):
+        raise CaseError(case_path, "--resume", str(fe_checkpoint),
+                        f"no coupled checkpoint for {comm.size} rank(s) in the output folder (the FE part resumes "
+                        "with the rank count that wrote it); run without --resume")
     solid = fe_app.build_solid(case, case_path)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
     interface = Interface(solid, case.coupling.interface, material)
+    distributed = comm if comm.size > 1 else None
+    if resume:
+        with np.load(fe_checkpoint) as state:
+            solid.restore_state(state)
+        engine = dem_app.load_checkpoint(case_path, dem_checkpoint, comm=distributed)
+        interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_engine)
+        n_sub = int(round(solid.dt / engine.dt))
+        return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
     built = comm.bcast(on_root(comm, lambda: dem_app.read_inputs(case, case_path)), root=0)
-    engine = dem_app.build_engine(case_path, case, built, extra_facets=[interface.facets],
-                                  comm=comm if comm.size > 1 else None)
+    engine = dem_app.build_engine(case_path, case, built, extra_facets=[interface.facets], comm=distributed)
     fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical,
                                       case.coupling.subcycles)
     solid.dt = fe_dt
     engine.dt = dem_dt
     dem_app.check_steps(case_path, case.time, fe_dt)
     return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
+
+
+def save_checkpoint(out_dir, solid, engine):
+    """The DEM (one file, collective) and this rank's FE state, each written to a
+    temporary file and renamed. The impulse in transit is the interface facets' vertex
+    impulse in the DEM file; the FE's interface force is made again from it on resume."""
+    comm = mpi_comm()
+    dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
+    save_engine_checkpoint(engine, dem_checkpoint)
+    fe_app.write_checkpoint(solid, fe_checkpoint)
+    comm.Barrier()
 
 
 def time_steps(dem_dt, fe_dt_stable, subcycles=None):
@@ -64,10 +103,10 @@ def time_steps(dem_dt, fe_dt_stable, subcycles=None):
 
 
 def run(prepared):
-    case, out_dir = prepared.case, prepared.out_dir
+    case, out_dir, resume = prepared.case, prepared.out_dir, prepared.resume
     solid, interface, engine = (prepared.built[k] for k in ("solid", "interface", "engine"))
     fe_dt, n_sub = solid.dt, prepared.built["subcycles"]
-    dem_dt = fe_dt / n_sub
+    dem_dt = engine.dt
     write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
 
     total = case.time.steps or int(math.ceil(case.time.duration / fe_dt))
@@ -77,12 +116,18 @@ def run(prepared):
         f"{total} FE steps, output every {every}"
         + (f", FE and DEM on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
 
-    series = CsvSeries(out_dir / "series.csv", COLUMNS) if is_root() else None
-    frames = PvdCollection(out_dir / "particles.pvd") if is_root() and case.output.vtk else None
+    resume_time = solid.time if resume else None
+    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
-    fields = FieldWriter(solid, out_dir / "fields")
-    progress = ProgressLine(case.case.name, total, case.output.progress_interval)
-    record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
+    fields = FieldWriter(solid, out_dir / ("fields_from_step%d" % solid.step_count if resume else "fields"))
+    progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=solid.step_count)
+    if resume:
+        interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
+        say(f"[{case.case.name}] resumed at FE step {solid.step_count} (t = {solid.time:.4e} s)")
+    else:
+        record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
+    last_checkpoint = time.perf_counter()
     while solid.step_count < total:
         for _ in range(min(PROGRESS_CHUNK, every - solid.step_count % every, total - solid.step_count)):
             coupled_step(solid, engine, interface, n_sub)
@@ -90,7 +135,11 @@ def run(prepared):
             record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
             fields.write()
         progress.update(solid.step_count, solid.time)
+        if mpi_comm().bcast(time.perf_counter() - last_checkpoint > case.output.checkpoint_interval, root=0):
+            save_checkpoint(out_dir, solid, engine)
+            last_checkpoint = time.perf_counter()
     progress.update(solid.step_count, solid.time, force=True)
+    save_checkpoint(out_dir, solid, engine)
     fields.close()
     if series is not None:
         series.close()

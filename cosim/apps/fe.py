@@ -119,10 +119,10 @@ def run(prepared):
             fields.write()
         progress.update(solver.step_count, solver.time)
         if comm.allreduce(time.perf_counter() - last_checkpoint > case.output.checkpoint_interval, op=_mpi_lor()):
-            _checkpoint(solver, checkpoint)
+            write_checkpoint(solver, checkpoint)
             last_checkpoint = time.perf_counter()
     progress.update(solver.step_count, solver.time, force=True)
-    _checkpoint(solver, checkpoint)
+    write_checkpoint(solver, checkpoint)
     fields.close()
     if is_root():
         series.close()
@@ -145,7 +145,8 @@ def _max_displacement(solver):
     return mpi_comm().allreduce(float(local), op=_mpi_max())
 
 
-def _checkpoint(solver, path):
+def write_checkpoint(solver, path):
+    """This rank's FE state to ``path`` (a temporary file, then renamed)."""
     tmp = path.with_name(path.stem + ".tmp.npz")
     np.savez(tmp, **solver.checkpoint_state())
     tmp.replace(path)

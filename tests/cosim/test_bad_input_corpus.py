@@ -254,7 +254,7 @@ CORPUS = [
         files={"specimen.npz": npz(positions=np.array([[0.01, np.nan, 0.01]]), radii=np.full(1, 1e-3))}),
     # ---------------------------------------------------------------- coupled
     Bad("coupled", "not used here", sets=["time.dt=1e-6"], label="time.dt in a coupled case"),
-    Bad("coupled", "not used here", sets=["output.checkpoint_interval=100.0"]),
+    Bad("coupled", "output.checkpoint_interval", sets=["output.checkpoint_interval=0.0"]),
     Bad("coupled", "not a surface physical group", sets=['coupling.interface=["nowhere"]']),
     Bad("coupled", "must be one of the materials", sets=['coupling.material="steel"']),
     Bad("coupled", "coupling.subcycles", sets=["coupling.subcycles=0"]),
