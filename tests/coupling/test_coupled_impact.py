@@ -155,3 +155,24 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     assert np.all(np.diff(s["time"]) > 0) and s["time"][-1] == pytest.approx(0.006, rel=1e-2)
     steps = np.diff(s["fe_step"])[:-1]  # rows every output interval (the last at the end): none missing
     assert np.all(steps == steps[0])
+
+
+def test_the_shipped_subcycling_case_gives_the_same_answer_with_1_and_20_substeps(tmp_path):
+    """runs/coupled_soft_plate_subcycling.toml: the plate's stable step is > 10 DEM steps.
+    1 and 20 DEM steps per FE step transfer the same momentum to the plate and move it
+    alike, within 1 % (compared at the end time both runs reached)."""
+    case = ROOT / "runs" / "coupled_soft_plate_subcycling.toml"
+    auto, out = run(case, tmp_path / "auto")
+    n_auto = int(out.split(" DEM steps per FE step")[0].rsplit("(", 1)[1])
+    assert n_auto >= 10
+    s1, out1 = run(case, tmp_path / "n1", "--set", "coupling.subcycles=1")
+    s20, out20 = run(case, tmp_path / "n20", "--set", "coupling.subcycles=20")
+    assert "(1 DEM steps per FE step)" in out1 and "(20 DEM steps per FE step)" in out20
+    p0 = s1["momentum_dem_z"][0]
+    assert s1["momentum_fe_z"][-1] > 0.2 * p0  # the grains did hit the plate
+    t_end = min(s1["time"][-1], s20["time"][-1])
+    for key in ("momentum_fe_z", "interface_displacement_z"):
+        expected = np.interp(t_end, s1["time"], s1[key])
+        assert np.interp(t_end, s20["time"], s20[key]) == pytest.approx(expected, rel=1e-2), key
+    for s in (s1, s20, auto):
+        assert np.abs(s["momentum_total_z"] - s["momentum_total_z"][0]).max() < 1e-12 * p0
