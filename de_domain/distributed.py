@@ -93,77 +93,90 @@ def _rows(particles, acceleration, ids, mask):
     return out
 
 
-def _history_rows(records, keep):
-    return {k: getattr(records, k)[keep[k.split("_")[0]]] for k in ContactRecords._fields}
-
-
 def rebuild(engine):
     """Migration, new decomposition if uneven, new ghosts, new lists (module docstring)."""
     domain = engine.domain
     comm = domain.comm
-    rank = comm.rank
-    p = engine.particles
-    nl = engine.neighbors
-    owned = p.owned
-    ids = domain.ids
     check_finite(engine)
     pending = engine._pending_records  # a checkpoint's history, on every rank
     engine._pending_records = None
-    records = nl.records(owned=owned)
+    owned = engine.particles.owned
     if needs_rebalance(comm.allgather(int(owned.sum()))):
-        domain.decomposition = _decompose(comm, p.pos[owned], p.radius[owned], nl.skin)
-    decomposition = domain.decomposition
-    new_owner = decomposition.owner(p.pos)  # ghosts included: their positions are current
-    owner_of = {"pair": (new_owner[np.searchsorted(ids, records.pair_keys >> 32)],
-                         new_owner[np.searchsorted(ids, records.pair_keys & ID_MASK)]),
-                "wall": (new_owner[np.searchsorted(ids, records.wall_keys >> 32)],),
-                "facet": (new_owner[np.searchsorted(ids, records.facet_keys >> 32)],)}
-    outgoing = {}
-    leaving = owned & (new_owner != rank)
-    for r in range(comm.size):
-        if r == rank:
-            continue
-        history = {kind: np.logical_or.reduce([o == r for o in owners]) for kind, owners in owner_of.items()}
-        moving = leaving & (new_owner == r)
-        if moving.any() or any(h.any() for h in history.values()):
-            outgoing[r] = {"particles": _rows(p, engine.acceleration, ids, moving),
-                           "history": _history_rows(records, history)}
-    received = exchange_records(comm, outgoing)
-    domain.migrated += int(leaving.sum())
-    kept_history = {kind: np.logical_or.reduce([o == rank for o in owners]) for kind, owners in owner_of.items()}
-    staying = _rows(p, engine.acceleration, ids, owned & (new_owner == rank))
-    mine = concatenate_records([staying] + [d["particles"] for d in received.values()], staying)
-    order = np.argsort(mine["id"], kind="stable")
-    mine = {k: v[order] for k, v in mine.items()}
-    local_history = _history_rows(records, kept_history)
-    history = concatenate_records([local_history] + [d["history"] for d in received.values()], local_history)
-    # ghosts of the new owned set
-    targets = decomposition.ghost_ranks(mine["pos"], rank)
+        domain.decomposition = _decompose(comm, engine.particles.pos[owned], engine.particles.radius[owned],
+                                          engine.neighbors.skin)
+    mine, history = _migrate(engine)
+    targets = domain.decomposition.ghost_ranks(mine["pos"], comm.rank)
     outgoing = {r: {"particles": {k: v[targets[:, r]] for k, v in mine.items()}}
                 for r in range(comm.size) if targets[:, r].any()}
     received = exchange_records(comm, outgoing)
     ghosts = concatenate_records([d["particles"] for d in received.values()], mine)
-    local = concatenate_records([mine, ghosts], mine)
-    order = np.argsort(local["id"], kind="stable")
-    local = {k: v[order] for k, v in local.items()}
-    n_mine = mine["id"].size
-    ghost = np.ones(local["id"].size, np.bool_)
-    ghost[np.argsort(order)[:n_mine]] = False
-    engine.particles = Particles.from_arrays(local, 0)
-    engine.particles.ghost = ghost
-    engine.acceleration = local["acceleration"]
-    domain.ids = local["id"]
-    carried = ContactRecords(**history) if pending is None else pending
-    p = engine.particles
-    vertices = engine._gather_facets()[0]
-    wall_point, wall_normal, _, _ = engine._wall_arrays()
-    nl.build(p.pos, p.radius, p.n, vertices, engine._triangles, wall_point, wall_normal, ghost=ghost,
-             ids=domain.ids, carried=carried, new_order=True)
-    engine._allocate_pair_arrays(nl.pair_js.size)
+    _install(engine, mine, ghosts, ContactRecords(**history) if pending is None else pending)
+    nl = engine.neighbors
     send = {r: nl.iperm[np.searchsorted(domain.ids, mine["id"][targets[:, r]])] for r in outgoing}
     receive = {r: nl.iperm[np.searchsorted(domain.ids, d["particles"]["id"])] for r, d in received.items()}
     domain.exchange = GhostExchange(comm, send, receive)
     domain.rebuilds += 1
+
+
+def _migrate(engine):
+    """Owned particles that left the slab go to their new owner with their wall and facet
+    histories; every pair history goes (from the rank owning the pair's lower id) to the
+    owners of both particles. Returns this rank's new owned records (ascending id) and the
+    contact history it keeps or received."""
+    domain = engine.domain
+    comm = domain.comm
+    rank = comm.rank
+    p = engine.particles
+    ids = domain.ids
+    owned = p.owned
+    records = engine.neighbors.records(owned=owned)
+    new_owner = domain.decomposition.owner(p.pos)  # ghosts included: their positions are current
+    owner_of = {"pair": (new_owner[np.searchsorted(ids, records.pair_keys >> 32)],
+                         new_owner[np.searchsorted(ids, records.pair_keys & ID_MASK)]),
+                "wall": (new_owner[np.searchsorted(ids, records.wall_keys >> 32)],),
+                "facet": (new_owner[np.searchsorted(ids, records.facet_keys >> 32)],)}
+
+    def history_for(r):
+        keep = {kind: np.logical_or.reduce([o == r for o in owners]) for kind, owners in owner_of.items()}
+        return {k: getattr(records, k)[keep[k.split("_")[0]]] for k in ContactRecords._fields}
+
+    leaving = owned & (new_owner != rank)
+    outgoing = {}
+    for r in range(comm.size):
+        if r == rank:
+            continue
+        moving = leaving & (new_owner == r)
+        history = history_for(r)
+        if moving.any() or any(v.size for k, v in history.items() if k.endswith("keys")):
+            outgoing[r] = {"particles": _rows(p, engine.acceleration, ids, moving), "history": history}
+    received = exchange_records(comm, outgoing)
+    domain.migrated += int(leaving.sum())
+    staying = _rows(p, engine.acceleration, ids, owned & (new_owner == rank))
+    mine = concatenate_records([staying] + [d["particles"] for d in received.values()], staying)
+    order = np.argsort(mine["id"], kind="stable")
+    kept = history_for(rank)
+    history = concatenate_records([kept] + [d["history"] for d in received.values()], kept)
+    return {k: v[order] for k, v in mine.items()}, history
+
+
+def _install(engine, mine, ghosts, carried):
+    """This rank's rows: ``mine`` (owned) and ``ghosts`` merged in ascending id; the lists
+    built with the ``carried`` contact history."""
+    local = concatenate_records([mine, ghosts], mine)
+    order = np.argsort(local["id"], kind="stable")
+    local = {k: v[order] for k, v in local.items()}
+    ghost = np.ones(local["id"].size, np.bool_)
+    ghost[np.argsort(order)[:mine["id"].size]] = False
+    engine.particles = Particles.from_arrays(local, 0)
+    engine.particles.ghost = ghost
+    engine.acceleration = local["acceleration"]
+    engine.domain.ids = local["id"]
+    p = engine.particles
+    vertices = engine._gather_facets()[0]
+    wall_point, wall_normal, _, _ = engine._wall_arrays()
+    engine.neighbors.build(p.pos, p.radius, p.n, vertices, engine._triangles, wall_point, wall_normal, ghost=ghost,
+                           ids=engine.domain.ids, carried=carried, new_order=True)
+    engine._allocate_pair_arrays(engine.neighbors.pair_js.size)
 
 
 def check_finite(engine):
