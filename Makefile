@@ -18,7 +18,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN       := mpirun --oversubscribe --bind-to none  # unbound: Numba threads may use both cores
 DEMO_CASE    ?= runs/coupled_footing_on_sand.toml
 
-.PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers clean
+.PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers bench-mpi clean
 
 setup: apt-packages $(STAMP)
 
@@ -79,6 +79,11 @@ bench-peers: setup
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 	$(PY) benchmarks/compare_peers.py
+
+# DEM over MPI ranks (80k and 320k beds, 1/2 ranks, 1/2 threads; LIGGGHTS beside it when
+# `make bench-peers` has installed it): README "DEM under MPI".
+bench-mpi: setup
+	$(PY) benchmarks/dem_scaling.py
 
 clean:
 	rm -rf $(VENV) runs/out .pytest_cache
