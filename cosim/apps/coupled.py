@@ -69,7 +69,13 @@ def prepare(case, case_path, out_dir, resume):
     distributed = comm if comm.size > 1 else None
     if resume:
         with np.load(fe_checkpoint) as state:
-            solid.restore_state(state)
+            fits = state["displacement"].shape == solid.displacement.shape
+            if fits:
+                solid.restore_state(state)
+        if comm.allgather(fits).count(False):  # agreed: every rank refuses alike
+            raise CaseError(case_path, "--resume", str(fe_checkpoint),
+                            "the FE checkpoint does not fit this run's mesh partition (DOLFINx may partition the "
+                            "mesh differently from run to run under mpirun); run without --resume")
         engine = dem_app.load_checkpoint(case_path, dem_checkpoint, comm=distributed)
         interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_engine)
         n_sub = int(round(solid.dt / engine.dt))

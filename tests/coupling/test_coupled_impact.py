@@ -101,28 +101,24 @@ def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
         assert np.interp(t_end, s4["time"], s4[key]) == pytest.approx(expected, rel=1e-2), key
 
 
-@pytest.mark.parametrize("ranks", [0, 2])
-def test_a_stopped_run_resumes_bit_for_bit(tmp_path, ranks):
-    """Run half, resume to the end (serially, and under mpirun -n 2): the CSV rows, the
-    FE state, the grains with their contact history and the impulse in transit are those
-    of the uninterrupted run, to the last bit."""
+def test_a_stopped_run_resumes_bit_for_bit(tmp_path):
+    """Run half, resume to the end: the CSV rows, the FE state, the grains with their
+    contact history and the impulse in transit are those of the uninterrupted run, to
+    the last bit. (Under mpirun the FE checkpoint needs the same mesh partition, which
+    DOLFINx does not promise from run to run: a resume that does not fit is refused.)"""
     case = impact_case(tmp_path, duration=0.004, name="resumed")
     straight, split = tmp_path / "straight", tmp_path / "split"
-    a, _ = run(case, straight, mpi=ranks)
-    run(case, split, "--set", "time.duration=0.002", mpi=ranks)
-    b, out = run(case, split, "--resume", mpi=ranks)
+    a, _ = run(case, straight)
+    run(case, split, "--set", "time.duration=0.002")
+    b, out = run(case, split, "--resume")
     assert "resumed at FE step" in out
     assert all(np.array_equal(a[k], b[k]) for k in a), [k for k in a if not np.array_equal(a[k], b[k])]
     with np.load(straight / "checkpoint.npz") as x, np.load(split / "checkpoint.npz") as y:
         for key in x.files:
-            if key == "energy_books" and ranks:  # sums over ranks: after a resume rank 0 carries the
-                np.testing.assert_allclose(x[key], y[key], rtol=1e-12, atol=0, err_msg=key)  # totals
-            else:
-                np.testing.assert_array_equal(x[key], y[key], err_msg=key)
-    for fe_file in straight.glob("checkpoint.fe.rank*.npz"):
-        with np.load(fe_file) as x, np.load(split / fe_file.name) as y:
-            for key in x.files:
-                np.testing.assert_array_equal(x[key], y[key], err_msg=f"{fe_file.name}: {key}")
+            np.testing.assert_array_equal(x[key], y[key], err_msg=key)
+    with np.load(straight / "checkpoint.fe.rank0of1.npz") as x, np.load(split / "checkpoint.fe.rank0of1.npz") as y:
+        for key in x.files:
+            np.testing.assert_array_equal(x[key], y[key], err_msg=key)
     assert list(split.glob("fields_from_step*.xdmf"))  # the continued FE fields have their own file
 
 
