@@ -77,6 +77,10 @@ def prepare(case, case_path, out_dir, resume):
                             "the FE checkpoint does not fit this run's mesh partition (DOLFINx may partition the "
                             "mesh differently from run to run under mpirun); run without --resume")
         engine = dem_app.load_checkpoint(case_path, dem_checkpoint, comm=distributed)
+        if abs(engine.time - solid.time) > 0.5 * engine.dt:  # killed between the two renames
+            raise CaseError(case_path, "--resume", str(dem_checkpoint),
+                            f"the DEM checkpoint (t = {engine.time:.6e} s) and the FE checkpoint (t = "
+                            f"{solid.time:.6e} s) are of different instants; run without --resume")
         interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_engine)
         n_sub = int(round(solid.dt / engine.dt))
         return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
@@ -92,8 +96,10 @@ def prepare(case, case_path, out_dir, resume):
 
 def save_checkpoint(out_dir, solid, engine):
     """The DEM (one file, collective) and this rank's FE state, each written to a
-    temporary file and renamed. The impulse in transit is the interface facets' vertex
-    impulse in the DEM file; the FE's interface force is made again from it on resume."""
+    temporary file and renamed (a kill between the two renames leaves files of two
+    instants, which prepare() refuses). The impulse in transit is the interface facets'
+    vertex impulse in the DEM file; the FE's interface force is made again from it on
+    resume."""
     comm = mpi_comm()
     dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
     save_engine_checkpoint(engine, dem_checkpoint)
