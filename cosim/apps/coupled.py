@@ -128,7 +128,9 @@ def run(prepared):
         f"{total} FE steps, output every {every}"
         + (f", FE and DEM on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
 
-    resume_time = solid.time if resume else None
+    # on resume, the rows from the checkpoint's instant on are written again (that instant's
+    # only if it is an output step, as in an uninterrupted run)
+    resume_time = solid.time * (1.0 - 1e-9) if resume else None
     series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
@@ -137,7 +139,7 @@ def run(prepared):
     if resume:
         interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
         say(f"[{case.case.name}] resumed at FE step {solid.step_count} (t = {solid.time:.4e} s)")
-    else:
+    if not resume or solid.step_count % every == 0:
         record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
     last_checkpoint = time.perf_counter()
     while solid.step_count < total:
