@@ -11,7 +11,8 @@
   run (README, "DEM under MPI").
 * :func:`exchange_records` — at list rebuilds only (migration, new ghosts,
   contact history): a dict of arrays per destination rank, one all-to-all.
-* :func:`gather_rows` — concatenation of per-rank rows on every rank, in rank order.
+* :func:`gather_rows` — concatenation of per-rank rows on every rank, in rank order;
+  :func:`sum_in_rank_order` — partial sums added in rank order (diagnostics).
 """
 from __future__ import annotations
 
@@ -98,6 +99,16 @@ def concatenate_records(parts, like):
     parts = [p for p in parts if p is not None]
     return {k: (np.concatenate([p[k] for p in parts]) if parts else np.zeros((0,) + v.shape[1:], v.dtype))
             for k, v in like.items()}
+
+
+def sum_in_rank_order(comm, values):
+    """``values`` (this rank's partial sums) added over the ranks in rank order: the same
+    bits on every rank, for a given rank count."""
+    values = np.asarray(values, dtype=np.float64)
+    total = np.zeros_like(values)
+    for part in comm.allgather(values):
+        total += part
+    return total
 
 
 def gather_rows(comm, array):

@@ -51,14 +51,11 @@ def _rank_sums(engine, values):
     """``values`` (this rank's partial sums, an array) summed over the ranks of a
     distributed engine in rank order (collective), the same bits on every rank; a
     serial engine's own ``values``."""
-    values = np.asarray(values, dtype=np.float64)
     domain = _domain(engine)
     if domain is None:
-        return values
-    total = np.zeros_like(values)
-    for part in domain.comm.allgather(values):
-        total += part
-    return total
+        return np.asarray(values, dtype=np.float64)
+    from .comm import sum_in_rank_order
+    return sum_in_rank_order(domain.comm, values)
 
 
 def kinetic_energy(engine):

@@ -31,7 +31,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import fused
-from .comm import GhostExchange, concatenate_records, exchange_records, gather_rows
+from .comm import GhostExchange, concatenate_records, exchange_records, gather_rows, sum_in_rank_order
 from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
 from .neighbors import MAX_SPREAD, ContactRecords, record_keys
 from .particles import ARRAY_FIELDS, Particles
@@ -310,10 +310,8 @@ def gather_records(engine):
 
 def reduce_books(engine, books):
     """Energy books of all ranks summed in rank order (the 'initialised' flag: any)."""
-    parts = engine.domain.comm.allgather(books)
-    total = np.zeros_like(books)
-    for part in parts:
-        total += part
-    total[BOOK_INITIALISED] = max(part[BOOK_INITIALISED] for part in parts)
+    comm = engine.domain.comm
+    total = sum_in_rank_order(comm, books)
+    total[BOOK_INITIALISED] = comm.allreduce(books[BOOK_INITIALISED], op=MPI.MAX)
     return total
 

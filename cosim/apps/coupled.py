@@ -36,6 +36,7 @@ from cosim.outputs import (
     say,
     write_run_metadata,
 )
+from de_domain.comm import sum_in_rank_order
 
 PROGRESS_CHUNK = 20  # FE steps between checks of the progress line
 
@@ -183,19 +184,11 @@ def momentum(solid, engine, interface):
     """Linear momentum (N s) of the FE nodes, of the particles and of the impulse in transit."""
     owned = slice(0, solid.n_owned_nodes)
     comm = mpi_comm()
-    fe = _rank_order_sum(comm, np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
+    fe = sum_in_rank_order(comm, np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
     p = engine.particles
     mine = p.owned
-    de = _rank_order_sum(comm, np.sum(p.mass[mine, None] * p.vel[mine], axis=0))
+    de = sum_in_rank_order(comm, np.sum(p.mass[mine, None] * p.vel[mine], axis=0))
     return fe, de, interface.pending_impulse()
-
-
-def _rank_order_sum(comm, part):
-    """Σ over ranks of ``part``, in rank order (the same bits on every rank)."""
-    total = np.zeros_like(part)
-    for value in comm.allgather(part):
-        total = total + value
-    return total
 
 
 def record(solid, engine, interface, series, frames, out_dir, vtk):
