@@ -8,6 +8,10 @@ the vertex forces over the ranks, so every rank has the same impulses). Each
 interface node is owned by exactly one rank (DOLFINx's index map): its position and
 velocity are gathered from that rank by all, and its force is set there only, so
 every impulse the particles give the facets reaches the FE exactly once.
+
+The interface traction for ParaView is the nodal force over the node's lumped area,
+t_a = f_a / A_a with A_a = Σ_{T ∋ a} |T| / 3 (= ∫ φ_a dA for linear triangles, on the
+reference surface).
 """
 from __future__ import annotations
 
@@ -48,6 +52,9 @@ class Interface:
         positions, velocities = self._gathered_state()
         self.facets = FacetMesh(positions, tri, material=material, source_nodes=self.global_nodes)
         self.facets.set_vertex_state(positions, velocities)
+        self._traction_field = None
+        self.owned_vertices = self._vertex_of_row[self._rows]  # facet vertex of each owned node
+        self.nodal_area = nodal_areas(positions, tri)[self.owned_vertices]  # of this rank's owned nodes
 
     def _gathered_state(self):
         """(positions X + u^n, velocities v^{n+½}) of the interface vertices, on every rank."""
@@ -68,9 +75,35 @@ class Interface:
     def receive_forces(self, window):
         """docs/design.md §5.3 step 4: interface force for the next FE step = impulse / Δt_FE, set on
         this rank's owned nodes only, so it is applied once."""
-        vertices = self._vertex_of_row[self._rows]
-        self.solid.external_force[self.owned_nodes] = self.facets.vertex_impulse[vertices] / window
+        self.solid.external_force[self.owned_nodes] = self.facets.vertex_impulse[self.owned_vertices] / window
 
     def pending_impulse(self):
         """Σ impulse of the last DEM window not yet applied to the FE (the same on every rank)."""
         return self.facets.vertex_impulse.sum(axis=0)
+
+    def traction(self):
+        """Traction t_a = f_a / A_a (Pa) that the particles exert on this rank's owned
+        interface nodes, from the interface force the FE applies in its next step."""
+        return self.solid.external_force[self.owned_nodes] / self.nodal_area[:, None]
+
+    def traction_field(self):
+        """The traction as a P1 vector field ``interface_traction`` (zero off the interface),
+        for :class:`fe_domain.output.FieldWriter`; refreshed at each call; collective."""
+        if self._traction_field is None:
+            from dolfinx import fem
+            self._traction_field = fem.Function(self.solid.V, name="interface_traction")
+        values = self._traction_field.x.array.reshape(-1, 3)
+        values[:] = 0.0
+        values[self.owned_nodes] = self.traction()
+        self._traction_field.x.scatter_forward()
+        return self._traction_field
+
+
+def nodal_areas(vertices, triangles):
+    """Lumped area of each vertex, A_a = Σ_{T ∋ a} |T| / 3 (m²)."""
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    third = np.linalg.norm(np.cross(b - a, c - a), axis=1) / 6.0
+    area = np.zeros(len(vertices))
+    for k in range(3):
+        np.add.at(area, triangles[:, k], third)
+    return area

@@ -82,7 +82,7 @@ if root:
 columns = ["time", "momentum_fe_z", "momentum_dem_z", "impulse_in_transit_z", "momentum_total_z"]
 series = CsvSeries(out / "series.csv", columns) if root else None
 frames = PvdCollection(out / "particles.pvd") if root else None
-fields = FieldWriter(solid, out / "fields")   # collective
+fields = FieldWriter(solid, out / "fields", extra_fields=[interface.traction_field])   # collective
 totals = []
 
 

@@ -1,7 +1,8 @@
 """Outputs of the FE solid: XDMF fields for ParaView, energy and reaction CSV files.
 
 Fields written: displacement u, velocity v, mean stress p (P1, at nodes) and the
-von Mises stress √(3/2 s:s) of s = 2G dev ε(u) (DG0, one value per cell).
+von Mises stress √(3/2 s:s) of s = 2G dev ε(u) (DG0, one value per cell), plus any
+fields the caller adds (e.g. the coupling's interface traction).
 """
 
 from __future__ import annotations
@@ -21,10 +22,13 @@ ENERGY_COLUMNS = ("time", "step", "kinetic", "strain", "external_work", "damping
 
 
 class FieldWriter:
-    """u, v, p and von Mises stress to one XDMF time series (``path``.xdmf + .h5)."""
+    """u, v, p, von Mises stress and ``extra_fields`` to one XDMF time series
+    (``path``.xdmf + .h5). ``extra_fields``: callables, each returning a function on the
+    solver's mesh brought up to date (called collectively at every write)."""
 
-    def __init__(self, solver, path: str | Path):
+    def __init__(self, solver, path: str | Path, extra_fields=()):
         self.solver = solver
+        self.extra_fields = tuple(extra_fields)
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         self.file = XDMFFile(solver.comm, str(Path(path).with_suffix(".xdmf")), "w")
         self.file.write_mesh(solver.mesh)
@@ -36,7 +40,8 @@ class FieldWriter:
         """Append the current state at t = solver.time."""
         self.von_mises.interpolate(self._von_mises_expr)
         t = self.solver.time
-        for field in (self.solver.u, self.solver.v, self.solver.p, self.von_mises):
+        extra = [field() for field in self.extra_fields]
+        for field in (self.solver.u, self.solver.v, self.solver.p, self.von_mises, *extra):
             self.file.write_function(field, t)
 
     def close(self) -> None:

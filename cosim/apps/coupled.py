@@ -11,8 +11,8 @@ Per FE step (the coupling schedule, docs/design.md §5.3):
 
 Outputs: ``series.csv`` (interface force, mean interface displacement, linear momentum
 of FE, DEM and the impulse in transit — conserved when no external force acts — and the
-DEM diagnostics), its PNG, ``fields.xdmf`` (FE), ``particles.pvd`` (particles and the
-interface facets).
+DEM diagnostics), its PNG, ``fields.xdmf`` (FE, with the interface traction f_a / A_a),
+``particles.pvd`` (particles and the interface facets).
 """
 from __future__ import annotations
 
@@ -135,7 +135,8 @@ def run(prepared):
     series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
-    fields = FieldWriter(solid, out_dir / ("fields_from_step%d" % solid.step_count if resume else "fields"))
+    fields = FieldWriter(solid, out_dir / ("fields_from_step%d" % solid.step_count if resume else "fields"),
+                         extra_fields=[interface.traction_field])
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=solid.step_count)
     if resume:
         interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
