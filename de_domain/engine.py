@@ -21,6 +21,7 @@ import numpy as np
 
 from . import fused
 from .contact_laws import HERTZ, LAWS
+from .dispatch import CachedEntry
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
 from .neighbors import ContactRecords, NeighborList
 from .particles import ARRAY_FIELDS, Particles
@@ -116,6 +117,10 @@ class Engine:
         self.time = 0.0
         self.step_count = 0
         self._setup_facet_topology()
+        self._walls_state = None
+        self._clock = np.zeros(2)
+        self._identity_perm = np.zeros(0, np.int32)  # perm of the sorted copies: 0, 1, ..., n − 1
+        self._advance_kernel = CachedEntry(fused.advance)  # fused.advance without per-call typing
         n = particles.n
         self.acceleration = np.zeros((n, 3))  # last step's (v^{n+½} − v^{n−½})/Δt, for the dashpot
         self._allocate_pair_arrays(0)
@@ -160,6 +165,9 @@ class Engine:
         self._triangle_material = np.concatenate(mats) if mats else np.zeros(0, np.int32)
         self._triangle_mesh = np.concatenate(meshes) if meshes else np.zeros(0, np.int32)
         self._vertex_force = np.zeros((v_off, 3))
+        self._facet_vertices = np.zeros((v_off, 3))  # all meshes' vertices, velocities and impulses
+        self._facet_vertex_velocity = np.zeros((v_off, 3))
+        self._facet_impulse = np.zeros((v_off, 3))
 
     def _allocate_pair_arrays(self, m):
         """Per-pair results of the last step: the force and torque on j (rows in the
@@ -216,11 +224,15 @@ class Engine:
             done += self._advance(todo)
 
     def _wall_arrays(self):
-        if not self.walls:
-            z = np.zeros((0, 3))
-            return z, z.copy(), z.copy(), np.zeros(0, np.int32)
-        return (np.array([w.point for w in self.walls]), np.array([w.normal for w in self.walls]),
-                np.array([w.velocity for w in self.walls]), np.array([w.material for w in self.walls], np.int32))
+        """(point, normal, velocity, material) of the plane walls, in arrays the engine keeps
+        (the same objects every call: see :mod:`de_domain.dispatch`)."""
+        n = len(self.walls)
+        if self._walls_state is None or len(self._walls_state[3]) != n:
+            self._walls_state = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int32))
+        point, normal, velocity, material = self._walls_state
+        for w, wall in enumerate(self.walls):
+            point[w], normal[w], velocity[w], material[w] = wall.point, wall.normal, wall.velocity, wall.material
+        return self._walls_state
 
     def _update_lists(self):
         p = self.particles
@@ -248,7 +260,9 @@ class Engine:
                                 in_order=in_order, skin=float(nl.skin))
         if in_order:
             particles = sorted_copies
-            perm = np.arange(p.n, dtype=np.int32)
+            if self._identity_perm.size != p.n:
+                self._identity_perm = np.arange(p.n, dtype=np.int32)
+            perm = self._identity_perm
         else:
             particles = ParticleArrays(p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia,
                                        p.material, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
@@ -288,15 +302,16 @@ class Engine:
         ones in place through ``perm``. Both give bit-identical results."""
         p = self.particles
         walls = self._wall_arrays()
-        clock = np.zeros(2)
-        clock[CLOCK_TIME] = self.time
+        clock = self._clock_at_start()
         copies = None
         if nsteps >= SORTED_MIN_STEPS and p.n_owned == p.n:
             copies = self._sorted_copies()
         vertices, vertex_vel = self._gather_facets()
-        impulse = (np.concatenate([m.vertex_impulse for m in self.facets]) if self.facets else np.zeros((0, 3)))
-        fused.advance(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies), self._books,
-                      clock)
+        impulse = self._facet_impulse
+        for k, mesh in enumerate(self.facets):
+            impulse[self._vertex_offsets[k]:self._vertex_offsets[k + 1]] = mesh.vertex_impulse
+        self._advance_kernel(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies),
+                             self._books, clock)
         if copies is not None:
             self._write_back(copies)
         done = int(clock[CLOCK_STEPS])
@@ -322,11 +337,10 @@ class Engine:
         and impulses are summed over the ranks afterwards, by the caller). Returns
         whether this rank's particles, walls or vertices call for a list rebuild."""
         walls = self._wall_arrays()
-        clock = np.zeros(2)
-        clock[CLOCK_TIME] = self.time
+        clock = self._clock_at_start()
         vertices, vertex_vel = self._gather_facets()
-        facet_state = (vertices, vertex_vel, np.zeros_like(vertices))  # this rank's impulse: not used
-        due = fused.advance(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
+        facet_state = (vertices, vertex_vel, self._facet_impulse)  # this rank's impulse: not used
+        due = self._advance_kernel(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
         self.time = float(clock[CLOCK_TIME])
         self.step_count += 1
         for w, wall in enumerate(self.walls):
@@ -347,12 +361,20 @@ class Engine:
             wall.point = wall_point[w].copy()
             self._wall_points_known[w] = wall.point.copy()
 
+    def _clock_at_start(self):
+        """The kernel's clock (kept by the engine), at this time and no step done."""
+        self._clock[CLOCK_TIME] = self.time
+        self._clock[CLOCK_STEPS] = 0.0
+        return self._clock
+
     # ------------------------------------------------------------------ boundaries
     def _gather_facets(self):
-        if not self.facets:
-            return np.zeros((0, 3)), np.zeros((0, 3))
-        return (np.concatenate([m.vertices for m in self.facets]),
-                np.concatenate([m.vertex_velocity for m in self.facets]))
+        """(vertices, velocities) of all facet meshes, copied into the arrays the engine keeps."""
+        for k, mesh in enumerate(self.facets):
+            part = slice(self._vertex_offsets[k], self._vertex_offsets[k + 1])
+            self._facet_vertices[part] = mesh.vertices
+            self._facet_vertex_velocity[part] = mesh.vertex_velocity
+        return self._facet_vertices, self._facet_vertex_velocity
 
     def _finish_facets(self, vertices, impulse):
         """Scatter the advanced vertices, the last step's vertex forces and the

@@ -144,6 +144,7 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     while time.time() < deadline and not ((out / "checkpoint.npz").exists() and (out / "series.csv").exists()
                                           and len((out / "series.csv").read_text().splitlines()) > 8):
         time.sleep(0.2)
+    assert proc.poll() is None, "the run ended before it could be killed"
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     s, stdout = run(case, out, "--resume", "--set", "time.duration=0.006", "--set", "output.interval=0.0002")
