@@ -120,6 +120,7 @@ class Engine:
         self._walls_state = None
         self._clock = np.zeros(2)
         self._identity_perm = np.zeros(0, np.int32)  # perm of the sorted copies: 0, 1, ..., n − 1
+        self._sorted = None  # buffers of the spatially sorted copies (_sorted_copies)
         self._advance_kernel = CachedEntry(fused.advance)  # fused.advance without per-call typing
         n = particles.n
         self.acceleration = np.zeros((n, 3))  # last step's (v^{n+½} − v^{n−½})/Δt, for the dashpot
@@ -264,9 +265,7 @@ class Engine:
                 self._identity_perm = np.arange(p.n, dtype=np.int32)
             perm = self._identity_perm
         else:
-            particles = ParticleArrays(p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia,
-                                       p.material, p.blocked, p.prescribed, p.prescribed_velocity, p.force,
-                                       p.torque, nl.ref_pos, p.ghost)
+            particles = self._public_arrays()
             perm = nl.perm
         pairs = PairList(perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_slot, nl.ht, nl.hr, self.j_rec,
                          self.pair_ov)
@@ -282,17 +281,30 @@ class Engine:
         return (settings, particles, ContactParameters(self.young, self.pair_params), pairs, plane_walls, meshes,
                 candidates)
 
-    def _sorted_copies(self):
-        """Particle arrays gathered into the spatial order (index = perm position)."""
+    def _public_arrays(self):
+        """The particle arrays in the public order, as the kernels take them."""
         p = self.particles
-        perm = self.neighbors.perm
-        if p.blocked.any() or p.prescribed.any():
-            constraints = (p.blocked[perm], p.prescribed[perm], p.prescribed_velocity[perm])
-        else:  # not read without constraints
-            constraints = (p.blocked, p.prescribed, p.prescribed_velocity)
-        return ParticleArrays(p.pos[perm], p.vel[perm], self.acceleration[perm], p.angvel[perm], p.radius[perm],
-                              p.mass[perm], p.inertia[perm], p.material[perm], *constraints,
-                              np.empty((p.n, 3)), np.empty((p.n, 3)), self.neighbors.ref_pos[perm], p.ghost[perm])
+        return ParticleArrays(p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia, p.material,
+                              p.blocked, p.prescribed, p.prescribed_velocity, p.force, p.torque,
+                              self.neighbors.ref_pos, p.ghost)
+
+    def _sorted_copies(self):
+        """Particle arrays gathered into the spatial order (index = perm position), in
+        buffers the engine keeps (made again only when the particle count changes, or
+        constraints appear: without them the constraint arrays are not read)."""
+        p = self.particles
+        constraints = bool(p.blocked.any() or p.prescribed.any())
+        copies = self._sorted
+        if copies is None or copies.pos.shape[0] != p.n or (constraints and copies.blocked is p.blocked):
+            n = p.n
+            constraint_arrays = ((np.zeros((n, 6), np.bool_), np.zeros((n, 6), np.bool_), np.zeros((n, 6)))
+                                 if constraints else (p.blocked, p.prescribed, p.prescribed_velocity))
+            copies = self._sorted = ParticleArrays(
+                np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n),
+                np.empty(n), np.empty(n, np.int32), *constraint_arrays, np.zeros((n, 3)), np.zeros((n, 3)),
+                np.empty((n, 3)), np.empty(n, np.bool_))
+        fused.gather_in_order(self.neighbors.perm, self._public_arrays(), copies, constraints)
+        return copies
 
     def _advance(self, nsteps):
         """Fused steps until ``nsteps`` are done or the lists need a rebuild.
@@ -323,14 +335,7 @@ class Engine:
 
     def _write_back(self, copies):
         """Scatter the spatially sorted copies back to the public arrays."""
-        p = self.particles
-        perm = self.neighbors.perm
-        p.pos[perm] = copies.pos
-        p.vel[perm] = copies.vel
-        self.acceleration[perm] = copies.accel
-        p.angvel[perm] = copies.angvel
-        p.force[perm] = copies.force
-        p.torque[perm] = copies.torque
+        fused.scatter_in_order(self.neighbors.perm, copies, self._public_arrays())
 
     def _advance_copies(self, copies):
         """One step on the sorted copies of a distributed run (the facet vertex forces

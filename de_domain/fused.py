@@ -454,3 +454,55 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
             rebuild = True
             break
     return rebuild
+
+
+@njit(parallel=True, cache=True)
+def gather_in_order(perm, public, copies, constraints):
+    """copies[s] = public[perm[s]] for every per-particle array the step reads (the
+    spatially sorted copies; the constraint arrays only when ``constraints``); the
+    force and torque are the step's output and are not gathered. (Fields unpacked
+    before the parallel loop, as in every kernel here.)"""
+    pos, vel, accel, angvel, ref_pos = public.pos, public.vel, public.accel, public.angvel, public.ref_pos
+    pos_c, vel_c, accel_c, angvel_c, ref_pos_c = copies.pos, copies.vel, copies.accel, copies.angvel, copies.ref_pos
+    radius, mass, inertia, material, ghost = public.radius, public.mass, public.inertia, public.material, public.ghost
+    radius_c, mass_c, inertia_c = copies.radius, copies.mass, copies.inertia
+    material_c, ghost_c = copies.material, copies.ghost
+    blocked, prescribed, prescribed_v = public.blocked, public.prescribed, public.prescribed_velocity
+    blocked_c, prescribed_c, prescribed_v_c = copies.blocked, copies.prescribed, copies.prescribed_velocity
+    for s in prange(perm.size):
+        i = perm[s]
+        for d in range(3):
+            pos_c[s, d] = pos[i, d]
+            vel_c[s, d] = vel[i, d]
+            accel_c[s, d] = accel[i, d]
+            angvel_c[s, d] = angvel[i, d]
+            ref_pos_c[s, d] = ref_pos[i, d]
+        radius_c[s] = radius[i]
+        mass_c[s] = mass[i]
+        inertia_c[s] = inertia[i]
+        material_c[s] = material[i]
+        ghost_c[s] = ghost[i]
+        if constraints:
+            for d in range(6):
+                blocked_c[s, d] = blocked[i, d]
+                prescribed_c[s, d] = prescribed[i, d]
+                prescribed_v_c[s, d] = prescribed_v[i, d]
+
+
+@njit(parallel=True, cache=True)
+def scatter_in_order(perm, copies, public):
+    """public[perm[s]] = copies[s] for what a step changes: x, v, the acceleration, ω,
+    force and torque."""
+    pos, vel, accel, angvel, force, torque = (public.pos, public.vel, public.accel, public.angvel, public.force,
+                                              public.torque)
+    pos_c, vel_c, accel_c, angvel_c, force_c, torque_c = (copies.pos, copies.vel, copies.accel, copies.angvel,
+                                                          copies.force, copies.torque)
+    for s in prange(perm.size):
+        i = perm[s]
+        for d in range(3):
+            pos[i, d] = pos_c[s, d]
+            vel[i, d] = vel_c[s, d]
+            accel[i, d] = accel_c[s, d]
+            angvel[i, d] = angvel_c[s, d]
+            force[i, d] = force_c[s, d]
+            torque[i, d] = torque_c[s, d]

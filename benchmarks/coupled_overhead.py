@@ -1,0 +1,183 @@
+"""Coupling overhead: a coupled FE step against its parts, timed alone in the same process.
+
+    .venv/bin/python benchmarks/coupled_overhead.py                    # both cases, 1 and 2 ranks
+    .venv/bin/python benchmarks/coupled_overhead.py --cases flagship --ranks 1
+
+Cases (``cosim`` coupled cases, built from ``runs/coupled_footing_on_sand.toml``):
+
+* ``flagship``: the case itself, 3,000 grains, an interface of 108 triangles;
+* ``large``: the same elastic plate, 60 × 60 × 5 mm with 2 mm elements, on the W1 bed of
+  20,000 grains (``benchmarks/beds.py``, box 76 × 76 mm): an interface of ≈ 2,600 triangles.
+
+each with 1 and 10 DEM substeps per FE step (``coupling.subcycles``). For each case,
+substep count and rank count the driver runs itself as a worker
+(``mpirun -n N python benchmarks/coupled_overhead.py --worker ...``, 1 Numba thread per
+rank). A worker prepares the case as ``cosim run`` does, warms up, then times, REPEATS
+times interleaved (so that the machine's drift hits all three alike):
+
+* ``coupled``: BLOCK coupled FE steps (``cosim.apps.coupled.coupled_step``), with the time
+  split into FE step, interface out (vertex positions and velocities to the DEM), DEM
+  window, interface in (impulse to FE forces);
+* ``DEM alone``: the same engine for BLOCK × subcycles DEM steps in one ``Engine.run`` call,
+  against the interface as fixed facets (vertex velocities zero);
+* ``FE alone``: BLOCK ``ExplicitSolid.step()`` calls.
+
+and prints the medians per FE step and ``overhead = coupled / (DEM alone + FE alone)``
+(target ≤ 1.10), with particle-steps/s; the rows also go to
+``benchmarks/out/coupled_overhead.json``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "benchmarks" / "out"
+FLAGSHIP = ROOT / "runs" / "coupled_footing_on_sand.toml"
+REPEATS = 5
+MIN_SECONDS = 0.3      # per timed block, roughly: BLOCK is chosen from a trial coupled step
+LARGE_BED = 20000
+LARGE_OVERRIDES = [
+    "fe.mesh_size=0.002",
+    "fe.geometry_parameters.Lx=0.06", "fe.geometry_parameters.Ly=0.06", "fe.geometry_parameters.Lz=0.005",
+    "fe.geometry_parameters.x0=0.008", "fe.geometry_parameters.y0=0.008",
+    "dem.walls[2].point=[0.076, 0.0, 0.0]", "dem.walls[4].point=[0.0, 0.076, 0.0]",
+]
+
+
+def case_overrides(case, subcycles):
+    """``--set`` overrides that make ``case`` (flagship | large) from the flagship file."""
+    overrides = [f"coupling.subcycles={subcycles}", "output.vtk=false"]
+    if case == "large":
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from beds import bed_file, load_dump
+        path = bed_file(LARGE_BED)
+        top = float((load_dump(path)[0][:, 2] + load_dump(path)[1]).max())
+        overrides += LARGE_OVERRIDES + [f"dem.particles.file={path}", f"fe.geometry_parameters.z0={top + 2e-4}"]
+    return overrides
+
+
+def _median(values):
+    values = sorted(values)
+    return values[len(values) // 2]
+
+
+def worker(case, subcycles, out_json):
+    import numpy as np
+    from mpi4py import MPI
+
+    from cosim.apps import coupled
+    from cosim.apps import dem as dem_app
+    from cosim.case import load_case
+
+    comm = MPI.COMM_WORLD
+    loaded, _ = load_case(FLAGSHIP, case_overrides(case, subcycles))
+    built = coupled.prepare(loaded, FLAGSHIP, OUT / "coupled_overhead_run", resume=False)
+    solid, interface, engine, n_sub = built["solid"], built["interface"], built["engine"], built["subcycles"]
+
+    def elapsed(work):
+        comm.Barrier()
+        start = time.perf_counter()
+        work()
+        return comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+
+    parts = np.zeros(4)  # FE step, interface out, DEM window, interface in
+
+    def coupled_block(steps):
+        for _ in range(steps):
+            t0 = time.perf_counter()
+            solid.step()
+            t1 = time.perf_counter()
+            interface.send_motion()
+            t2 = time.perf_counter()
+            dem_app.advance(engine, n_sub)
+            t3 = time.perf_counter()
+            interface.receive_forces(solid.dt)
+            parts[:] += (t1 - t0, t2 - t1, t3 - t2, time.perf_counter() - t3)
+
+    def dem_block(steps):
+        interface.facets.vertex_velocity[:] = 0.0  # the interface as fixed facets
+        engine.run(steps * n_sub)
+
+    def fe_block(steps):
+        for _ in range(steps):
+            solid.step()
+
+    trial = elapsed(lambda: coupled_block(20)) / 20
+    block = max(20, int(comm.bcast(MIN_SECONDS / trial, root=0)))
+    times = {"coupled": [], "dem": [], "fe": []}
+    for _ in range(REPEATS):
+        parts[:] = 0.0
+        times["coupled"].append(elapsed(lambda: coupled_block(block)) / block)
+        times["dem"].append(elapsed(lambda: dem_block(block)) / block)
+        times["fe"].append(elapsed(lambda: fe_block(block)) / block)
+    split = np.zeros(4)
+    comm.Allreduce(parts, split, op=MPI.MAX)
+    split /= block
+    if comm.rank:
+        return
+    med = {k: _median(v) for k, v in times.items()}
+    n_grains = engine.domain.n_global if engine.domain is not None else engine.particles.n
+    row = {"case": case, "grains": int(n_grains), "facets": int(len(interface.facets.triangles)),
+           "fe_cells": int(solid.mesh.topology.index_map(3).size_global), "subcycles": n_sub, "ranks": comm.size,
+           "block": block, "coupled_us": 1e6 * med["coupled"], "dem_us": 1e6 * med["dem"], "fe_us": 1e6 * med["fe"],
+           "overhead": med["coupled"] / (med["dem"] + med["fe"]),
+           "split_us": dict(zip(("fe", "out", "dem", "in"), (1e6 * split).tolist(), strict=True)),
+           "particle_steps_per_s": n_grains * n_sub / med["coupled"]}
+    with open(out_json, "w") as handle:
+        json.dump(row, handle)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--cases", nargs="+", default=["flagship", "large"], choices=["flagship", "large"])
+    parser.add_argument("--subcycles", nargs="+", type=int, default=[1, 10])
+    parser.add_argument("--ranks", nargs="+", type=int, default=[1, 2])
+    parser.add_argument("--worker", nargs=3, metavar=("CASE", "SUBCYCLES", "JSON"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.worker:
+        case, subcycles, out_json = args.worker
+        try:
+            worker(case, int(subcycles), out_json)
+        except BaseException:  # one rank failing ends all (no rank left waiting in a collective)
+            import traceback
+
+            from mpi4py import MPI
+            traceback.print_exc()
+            MPI.COMM_WORLD.Abort(1)
+        return
+    OUT.mkdir(parents=True, exist_ok=True)
+    if "large" in args.cases:
+        case_overrides("large", 1)  # make the 20,000 bed first, if it is missing
+    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    rows = []
+    print(f"{'case':9s} {'grains':>7s} {'facets':>6s} {'sub':>4s} {'ranks':>5s} | {'coupled':>9s} {'DEM alone':>9s} "
+          f"{'FE alone':>9s} {'overhead':>8s} | split of a coupled step: FE / out / DEM / in [us] | particle-steps/s")
+    for case in args.cases:
+        for subcycles in args.subcycles:
+            for ranks in args.ranks:
+                out_json = OUT / f"coupled_overhead_{case}_{subcycles}_{ranks}.json"
+                cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), sys.executable, __file__,
+                       "--worker", case, str(subcycles), str(out_json)]
+                done = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
+                if done.returncode:
+                    sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
+                row = json.loads(out_json.read_text())
+                rows.append(row)
+                s = row["split_us"]
+                print(f"{case:9s} {row['grains']:7d} {row['facets']:6d} {row['subcycles']:4d} {ranks:5d} | "
+                      f"{row['coupled_us']:7.0f}us {row['dem_us']:7.0f}us {row['fe_us']:7.0f}us "
+                      f"{row['overhead']:7.2f}x | "
+                      f"{s['fe']:7.0f} / {s['out']:5.0f} / {s['dem']:7.0f} / {s['in']:4.0f}"
+                      f"{'':18s} | {row['particle_steps_per_s']:.3g}", flush=True)
+    (OUT / "coupled_overhead.json").write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
