@@ -62,7 +62,8 @@ class Interface:
         nodes = self.owned_nodes
         u_now = s.displacement[nodes] - s.dt * s.velocity[nodes] if s.step_count else s.displacement[nodes]
         local = np.hstack([s.node_coordinates[nodes] + u_now, s.velocity[nodes]])
-        state = np.concatenate(self.comm.allgather(local))[self._from_gathered]
+        gathered = np.concatenate(self.comm.allgather(local)) if self.comm.size > 1 else local  # one rank: no call
+        state = gathered[self._from_gathered]
         return state[:, :3], state[:, 3:]
 
     def send_motion(self):
