@@ -18,7 +18,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN       := mpirun --oversubscribe --bind-to none  # unbound: Numba threads may use both cores
 DEMO_CASE    ?= runs/coupled_footing_on_sand.toml
 
-.PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers bench-mpi clean
+.PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers bench-mpi bench-coupled clean
 
 setup: apt-packages $(STAMP)
 
@@ -82,6 +82,10 @@ bench-peers: setup
 
 # DEM over MPI ranks (80k and 320k beds, 1/2 ranks, 1/2 threads; LIGGGHTS beside it when
 # `make bench-peers` has installed it): README "DEM under MPI".
+# coupled FE step against the DEM window and the FE step alone (README "Coupling overhead")
+bench-coupled: setup
+	$(PY) benchmarks/coupled_overhead.py
+
 bench-mpi: setup
 	$(PY) benchmarks/dem_scaling.py
 

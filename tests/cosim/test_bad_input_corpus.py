@@ -258,6 +258,8 @@ CORPUS = [
     Bad("coupled", "not a surface physical group", sets=['coupling.interface=["nowhere"]']),
     Bad("coupled", "must be one of the materials", sets=['coupling.material="steel"']),
     Bad("coupled", "coupling.subcycles", sets=["coupling.subcycles=0"]),
+    # dt_DE = dt_FE / subcycles is never above time.safety_factor (<= 0.5) x its critical step
+    Bad("coupled", "time.safety_factor", sets=["time.safety_factor=0.9"], label="dt_DE above half its critical step"),
     Bad("coupled", "needs a [coupling] section", cut="[coupling]", label="no [coupling]"),
     Bad("coupled", "file not found", sets=['dem.particles.file="missing.npz"']),
     Bad("coupled", "does not use [specimen]", sets=["specimen.scale=2.0"]),
