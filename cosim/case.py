@@ -329,6 +329,11 @@ class CouplingSection(_Section):
     subcycles: Optional[int] = Field(
         default=None, ge=1,
         description="DEM steps per FE step [-]; default the largest the FE stability allows")
+    smoothing_time: float = Field(
+        default=0.0, ge=0,
+        description="time constant tau of an optional low-pass filter on the interface force: each FE step "
+                    "the FE gets 1 - exp(-dt_FE/tau) of the impulse collected and not yet applied, the rest "
+                    "stays in transit (momentum exactly conserved); 0: off, the whole window's impulse [s]")
 
 
 class Case(_Section):

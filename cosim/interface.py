@@ -9,11 +9,20 @@ interface node is owned by exactly one rank (DOLFINx's index map): its position 
 velocity are gathered from that rank by all, and its force is set there only, so
 every impulse the particles give the facets reaches the FE exactly once.
 
+Optional smoothing of the interface force in time (``smoothing_time`` τ > 0): the impulse
+I of a window joins an impulse held back H, and the FE receives the part
+β (H + I), β = 1 − exp(−Δt_FE/τ), of it — a first-order low-pass filter with time constant
+τ; the rest stays held. What is held counts as impulse in transit, so the momentum of
+FE + DEM + impulse in transit stays exactly conserved (docs/design.md §5.4); at a steady
+load the FE receives, on average, the whole impulse.
+
 The interface traction for ParaView is the nodal force over the node's lumped area,
 t_a = f_a / A_a with A_a = Σ_{T ∋ a} |T| / 3 (= ∫ φ_a dA for linear triangles, on the
 reference surface).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -25,7 +34,7 @@ class Interface:
     global index ``global_nodes[k]``. Collective construction.
     """
 
-    def __init__(self, solid, names, material=0):
+    def __init__(self, solid, names, material=0, smoothing_time=0.0):
         from de_domain import FacetMesh
 
         names = [names] if isinstance(names, str) else list(names)
@@ -53,6 +62,10 @@ class Interface:
         self.facets = FacetMesh(positions, tri, material=material, source_nodes=self.global_nodes)
         self.facets.set_vertex_state(positions, velocities)
         self._traction_field = None
+        self.smoothing_time = float(smoothing_time)
+        self.held = np.zeros_like(positions)         # impulse held back by the smoothing (every vertex)
+        self.held_before = self.held.copy()          # ... before the last receive_forces (for checkpoints)
+        self.released = self.facets.vertex_impulse   # impulse handed to the FE's next step (every vertex)
         self.owned_vertices = self._vertex_of_row[self._rows]  # facet vertex of each owned node
         self.nodal_area = nodal_areas(positions, tri)[self.owned_vertices]  # of this rank's owned nodes
 
@@ -75,12 +88,22 @@ class Interface:
 
     def receive_forces(self, window):
         """docs/design.md §5.3 step 4: interface force for the next FE step = impulse / Δt_FE, set on
-        this rank's owned nodes only, so it is applied once."""
-        self.solid.external_force[self.owned_nodes] = self.facets.vertex_impulse[self.owned_vertices] / window
+        this rank's owned nodes only, so it is applied once. With smoothing, the impulse released
+        from the window's and the held one (module docstring)."""
+        impulse = self.facets.vertex_impulse
+        if self.smoothing_time > 0.0:
+            self.held_before = self.held
+            total = self.held + impulse
+            self.released = -math.expm1(-window / self.smoothing_time) * total
+            self.held = total - self.released
+        else:
+            self.released = impulse
+        self.solid.external_force[self.owned_nodes] = self.released[self.owned_vertices] / window
 
     def pending_impulse(self):
-        """Σ impulse of the last DEM window not yet applied to the FE (the same on every rank)."""
-        return self.facets.vertex_impulse.sum(axis=0)
+        """Σ impulse collected by the DEM and not yet applied to the FE: released for the next FE
+        step, and held back by the smoothing (the same on every rank)."""
+        return self.released.sum(axis=0) + self.held.sum(axis=0)
 
     def traction(self):
         """Traction t_a = f_a / A_a (Pa) that the particles exert on this rank's owned

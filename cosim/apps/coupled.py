@@ -66,13 +66,15 @@ def prepare(case, case_path, out_dir, resume):
                         "with the rank count that wrote it); run without --resume")
     solid = fe_app.build_solid(case, case_path)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
-    interface = Interface(solid, case.coupling.interface, material)
+    interface = Interface(solid, case.coupling.interface, material, case.coupling.smoothing_time)
     distributed = comm if comm.size > 1 else None
     if resume:
         with np.load(fe_checkpoint) as state:
             fits = state["displacement"].shape == solid.displacement.shape
             if fits:
                 solid.restore_state(state)
+                if "interface_held" in state:  # (before the last window's impulse joined it; absent: none)
+                    interface.held = state["interface_held"].copy()
         if comm.allgather(fits).count(False):  # agreed: every rank refuses alike
             raise CaseError(case_path, "--resume", str(fe_checkpoint),
                             "the FE checkpoint does not fit this run's mesh partition (DOLFINx may partition the "
@@ -95,16 +97,17 @@ def prepare(case, case_path, out_dir, resume):
     return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
 
 
-def save_checkpoint(out_dir, solid, engine):
+def save_checkpoint(out_dir, solid, engine, interface):
     """The DEM (one file, collective) and this rank's FE state, each written to a
     temporary file and renamed (a kill between the two renames leaves files of two
     instants, which prepare() refuses). The impulse in transit is the interface facets'
-    vertex impulse in the DEM file; the FE's interface force is made again from it on
+    vertex impulse in the DEM file, and the impulse held back by the smoothing (before that
+    window's joined it) in the FE files; the FE's interface force is made again from the two on
     resume."""
     comm = mpi_comm()
     dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
     save_engine_checkpoint(engine, dem_checkpoint)
-    fe_app.write_checkpoint(solid, fe_checkpoint)
+    fe_app.write_checkpoint(solid, fe_checkpoint, extra={"interface_held": interface.held_before})
     comm.Barrier()
 
 
@@ -152,10 +155,10 @@ def run(prepared):
             fields.write()
         progress.update(solid.step_count, solid.time)
         if mpi_comm().bcast(time.perf_counter() - last_checkpoint > case.output.checkpoint_interval, root=0):
-            save_checkpoint(out_dir, solid, engine)
+            save_checkpoint(out_dir, solid, engine, interface)
             last_checkpoint = time.perf_counter()
     progress.update(solid.step_count, solid.time, force=True)
-    save_checkpoint(out_dir, solid, engine)
+    save_checkpoint(out_dir, solid, engine, interface)
     fields.close()
     if series is not None:
         series.close()

@@ -145,10 +145,10 @@ def _max_displacement(solver):
     return mpi_comm().allreduce(float(local), op=_mpi_max())
 
 
-def write_checkpoint(solver, path):
-    """This rank's FE state to ``path`` (a temporary file, then renamed)."""
+def write_checkpoint(solver, path, extra=None):
+    """This rank's FE state (and the arrays of ``extra``) to ``path`` (a temporary file, then renamed)."""
     tmp = path.with_name(path.stem + ".tmp.npz")
-    np.savez(tmp, **solver.checkpoint_state())
+    np.savez(tmp, **solver.checkpoint_state(), **(extra or {}))
     tmp.replace(path)
 
 

@@ -45,3 +45,32 @@ def test_a_uniform_traction_is_recovered_at_every_node(plate, tmp_path):
     writer.write()
     writer.close()
     assert 'Name="interface_traction"' in (out / "fields.xdmf").read_text()
+
+
+def test_smoothing_conserves_the_impulse_and_filters_white_noise_as_a_first_order_low_pass():
+    """Windows of white-noise impulses I_n (mean m, variance s²) through the smoothing of time
+    constant τ: what the FE gets plus what is held equals what came in, to round-off, every
+    step; the mean force is kept; the variance of what the FE gets is s² β/(2 − β),
+    β = 1 − exp(−Δt/τ) (the closed form of y_n = β x_n + (1 − β) y_{n−1})."""
+    solid = build_solid("block.geo", 0.005, material={"E": 1.0e7, "nu": 0.3, "rho": 2000.0},
+                        geometry_parameters={"Lx": 0.01, "Ly": 0.01, "Lz": 0.005}, formulation="mixed",
+                        comm=MPI.COMM_SELF)
+    window, tau = 1e-5, 1e-4
+    interface = Interface(solid, ["bottom"], material=0, smoothing_time=tau)
+    rng = np.random.default_rng(7)
+    nv = len(interface.facets.vertices)
+    mean, sigma, steps = 2.0e-5, 1.0e-5, 20000
+    applied, collected = np.zeros(3), np.zeros(3)
+    received = np.empty((steps, nv))
+    for n in range(steps):
+        interface.facets.vertex_impulse[:] = 0.0
+        interface.facets.vertex_impulse[:, 2] = rng.normal(mean, sigma, nv)
+        collected += interface.facets.vertex_impulse.sum(axis=0)
+        interface.receive_forces(window)
+        received[n] = interface.released[:, 2]
+        assert applied + interface.pending_impulse() == pytest.approx(collected, rel=1e-12, abs=1e-30)
+        applied += interface.released.sum(axis=0)
+    beta = -np.expm1(-window / tau)
+    settled = received[2000:]  # after ~20 τ
+    assert settled.mean() == pytest.approx(mean, rel=2e-3)
+    assert settled.var() == pytest.approx(sigma**2 * beta / (2 - beta), rel=0.05)
