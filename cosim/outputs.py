@@ -129,15 +129,28 @@ def _drop_none(obj):
     return obj
 
 
-class CsvSeries:
-    """A CSV time series, one flushed row at a time; on resume keeps rows up to ``t_resume``."""
+RESUME_TOLERANCE = 1e-8  # relative: times in the files have 10 significant digits (CSV, PVD)
 
-    def __init__(self, path, columns, resume_time=None):
+
+def kept_on_resume(t, resume_time, keep_resume_instant):
+    """Whether a row or frame of time ``t`` (as read back from a file, so rounded) stays when a
+    run resumes at ``resume_time``: every earlier one, and the one of the resume instant itself
+    when ``keep_resume_instant`` (a kind that writes it before its checkpoint); not a later one."""
+    margin = RESUME_TOLERANCE * abs(resume_time)
+    return t < resume_time - margin or (keep_resume_instant and t <= resume_time + margin)
+
+
+class CsvSeries:
+    """A CSV time series, one flushed row at a time; on resume keeps the rows before
+    ``resume_time`` (and the one at it, with ``keep_resume_instant``)."""
+
+    def __init__(self, path, columns, resume_time=None, keep_resume_instant=True):
         self.path, self.columns = Path(path), list(columns)
         kept = []
         if resume_time is not None and self.path.exists():
             with open(self.path) as f:
-                kept = [r for r in csv.DictReader(f) if float(r[self.columns[0]]) <= resume_time * (1 + 1e-12)]
+                kept = [r for r in csv.DictReader(f)
+                        if kept_on_resume(float(r[self.columns[0]]), resume_time, keep_resume_instant)]
         self._file = open(self.path, "w", newline="")
         self._writer = csv.writer(self._file)
         self._writer.writerow(self.columns)
@@ -179,17 +192,18 @@ class PvdCollection:
     """A ParaView ``.pvd`` collection of VTU frames, rewritten atomically after each frame.
 
     Files written together at one time are parts 0, 1, ... of that timestep (e.g.
-    particles and facet meshes). On resume the existing entries are kept up to ``resume_time``.
+    particles and facet meshes). On resume the existing entries before ``resume_time`` are
+    kept (and those at it, with ``keep_resume_instant``).
     """
 
     _ENTRY = re.compile(r'<DataSet timestep="([^"]+)" group="" part="(\d+)" file="([^"]+)"/>')
 
-    def __init__(self, path, resume_time=None):
+    def __init__(self, path, resume_time=None, keep_resume_instant=True):
         self.path = Path(path)
         self.entries = []
         if resume_time is not None and self.path.exists():
             self.entries = [(t, int(part), f) for t, part, f in self._ENTRY.findall(self.path.read_text())
-                            if float(t) <= resume_time * (1 + 1e-12)]
+                            if kept_on_resume(float(t), resume_time, keep_resume_instant)]
 
     def add(self, t, files):
         for part, f in enumerate(files):

@@ -134,9 +134,11 @@ def run(prepared):
 
     # on resume, the rows from the checkpoint's instant on are written again (that instant's
     # only if it is an output step, as in an uninterrupted run)
-    resume_time = solid.time * (1.0 - 1e-9) if resume else None
-    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
-    frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
+    resume_time = solid.time if resume else None
+    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time, keep_resume_instant=False) \
+        if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd", resume_time, keep_resume_instant=False) \
+        if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
     fields = FieldWriter(solid, out_dir / ("fields_from_step%d" % solid.step_count if resume else "fields"),
                          extra_fields=[interface.traction_field])

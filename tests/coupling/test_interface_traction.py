@@ -74,3 +74,25 @@ def test_smoothing_conserves_the_impulse_and_filters_white_noise_as_a_first_orde
     settled = received[2000:]  # after ~20 τ
     assert settled.mean() == pytest.approx(mean, rel=2e-3)
     assert settled.var() == pytest.approx(sigma**2 * beta / (2 - beta), rel=0.05)
+
+
+def test_the_interface_carries_the_grains_weight_at_rest_and_weight_plus_load_when_pressed(tmp_path):
+    """studies/interface_traction.py on one coarse mesh and a thin layer: at rest (unbalanced
+    force ratio < 1e-3) the total interface force is the grains' weight, pressed by the servo
+    wall it is the wall's force plus the weight, both within 1 %."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    study = Path(__file__).parents[2] / "studies" / "interface_traction.py"
+    done = subprocess.run([sys.executable, str(study), str(tmp_path), "--sizes", "0.005", "--grains", "60",
+                           "--no-noise"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    (row,) = json.loads((tmp_path / "traction_convergence.json").read_text())
+    for phase in ("rest", "pressed"):
+        assert row[f"{phase}_ufr"] < 1e-3
+        assert abs(row[f"{phase}_force"] / row[f"{phase}_expected"] - 1.0) < 1e-2, phase
+    assert row["pressed_expected"] > 10 * row["weight"]  # the load, not the weight, dominates when pressed
+    assert np.all(np.array(row["pressed_patches"]) > 0.0)  # every quarter of the block carries load
+    assert (tmp_path / "traction_convergence.png").exists()
