@@ -23,7 +23,8 @@ times interleaved (so that the machine's drift hits all three alike):
 * ``FE alone``: BLOCK ``ExplicitSolid.step()`` calls.
 
 and prints the medians per FE step and ``overhead = coupled / (DEM alone + FE alone)``
-(target ≤ 1.10), with particle-steps/s; the rows also go to
+(target ≤ 1.10), with particle-steps/s and the neighbour-list builds per 1,000 DEM steps in
+the coupled and the DEM-alone blocks (the moving interface stirs the grains: more builds); the rows also go to
 ``benchmarks/out/coupled_overhead.json``.
 """
 from __future__ import annotations
@@ -111,11 +112,14 @@ def worker(case, subcycles, out_json):
     trial = elapsed(lambda: coupled_block(20)) / 20
     block = max(20, int(comm.bcast(MIN_SECONDS / trial, root=0)))
     times = {"coupled": [], "dem": [], "fe": []}
+    builds = {"coupled": 0, "dem": 0}  # neighbour-list builds (rank 0) during the timed blocks
     for _ in range(REPEATS):
         parts[:] = 0.0
-        times["coupled"].append(elapsed(lambda: coupled_block(block)) / block)
-        times["dem"].append(elapsed(lambda: dem_block(block)) / block)
-        times["fe"].append(elapsed(lambda: fe_block(block)) / block)
+        for kind, work in (("coupled", coupled_block), ("dem", dem_block), ("fe", fe_block)):
+            before = engine.neighbors.n_builds
+            times[kind].append(elapsed(lambda work=work: work(block)) / block)
+            if kind in builds:
+                builds[kind] += engine.neighbors.n_builds - before
     split = np.zeros(4)
     comm.Allreduce(parts, split, op=MPI.MAX)
     split /= block
@@ -128,7 +132,8 @@ def worker(case, subcycles, out_json):
            "block": block, "coupled_us": 1e6 * med["coupled"], "dem_us": 1e6 * med["dem"], "fe_us": 1e6 * med["fe"],
            "overhead": med["coupled"] / (med["dem"] + med["fe"]),
            "split_us": dict(zip(("fe", "out", "dem", "in"), (1e6 * split).tolist(), strict=True)),
-           "particle_steps_per_s": n_grains * n_sub / med["coupled"]}
+           "particle_steps_per_s": n_grains * n_sub / med["coupled"],
+           "builds_per_1000_steps": {k: 1000.0 * v / (REPEATS * block * n_sub) for k, v in builds.items()}}
     with open(out_json, "w") as handle:
         json.dump(row, handle)
 
@@ -158,7 +163,8 @@ def main():
                OMPI_MCA_rmaps_base_oversubscribe="1")
     rows = []
     print(f"{'case':9s} {'grains':>7s} {'facets':>6s} {'sub':>4s} {'ranks':>5s} | {'coupled':>9s} {'DEM alone':>9s} "
-          f"{'FE alone':>9s} {'overhead':>8s} | split of a coupled step: FE / out / DEM / in [us] | particle-steps/s")
+          f"{'FE alone':>9s} {'overhead':>8s} | split of a coupled step: FE / out / DEM / in [us] | particle-steps/s "
+          "| list builds per 1000 DEM steps: coupled / DEM alone")
     for case in args.cases:
         for subcycles in args.subcycles:
             for ranks in args.ranks:
@@ -170,12 +176,12 @@ def main():
                     sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
                 row = json.loads(out_json.read_text())
                 rows.append(row)
-                s = row["split_us"]
+                s, b = row["split_us"], row["builds_per_1000_steps"]
                 print(f"{case:9s} {row['grains']:7d} {row['facets']:6d} {row['subcycles']:4d} {ranks:5d} | "
                       f"{row['coupled_us']:7.0f}us {row['dem_us']:7.0f}us {row['fe_us']:7.0f}us "
                       f"{row['overhead']:7.2f}x | "
                       f"{s['fe']:7.0f} / {s['out']:5.0f} / {s['dem']:7.0f} / {s['in']:4.0f}"
-                      f"{'':18s} | {row['particle_steps_per_s']:.3g}", flush=True)
+                      f" | {row['particle_steps_per_s']:.3g} | {b['coupled']:.1f} / {b['dem']:.1f}", flush=True)
     (OUT / "coupled_overhead.json").write_text(json.dumps(rows, indent=1))
 
 

@@ -201,7 +201,9 @@ def plot(rows, path):
         right.plot(np.arange(len(patches)), patches, "o-", label=f"h = {1e3 * row['h']:.2f} mm")
     mean = (rows[0]["pressed_expected"]) / (L * L) / 1e3
     left.axvline(mean, color="k", lw=0.8, ls="--", label=f"(P + W) / A = {mean:.2f} kPa")
-    left.set_xlabel("nodal normal traction f_a / A_a [kPa]")
+    left.set_xscale("symlog", linthresh=0.01)
+    left.set_xlim(left=0.0)
+    left.set_xlabel("nodal normal traction f_a / A_a [kPa] (linear below 0.01)")
     left.set_ylabel("fraction of interface nodes")
     left.set_title("pressed: distribution of the nodal traction")
     left.legend(fontsize=8)
