@@ -13,7 +13,8 @@ each with 1 and 10 DEM substeps per FE step (``coupling.subcycles``). For each c
 substep count and rank count the driver runs itself as a worker
 (``mpirun -n N python benchmarks/coupled_overhead.py --worker ...``, 1 Numba thread per
 rank). A worker prepares the case as ``cosim run`` does, warms up, then times, REPEATS
-times interleaved (so that the machine's drift hits all three alike):
+times interleaved, each of the three first in turn (so that the machine's drift and the
+order hit all three alike):
 
 * ``coupled``: BLOCK coupled FE steps (``cosim.apps.coupled.coupled_step``), with the time
   split into FE step, interface out (vertex positions and velocities to the DEM), DEM
@@ -113,9 +114,10 @@ def worker(case, subcycles, out_json):
     block = max(20, int(comm.bcast(MIN_SECONDS / trial, root=0)))
     times = {"coupled": [], "dem": [], "fe": []}
     builds = {"coupled": 0, "dem": 0}  # neighbour-list builds (rank 0) during the timed blocks
-    for _ in range(REPEATS):
+    blocks = [("coupled", coupled_block), ("dem", dem_block), ("fe", fe_block)]
+    for repeat in range(REPEATS):
         parts[:] = 0.0
-        for kind, work in (("coupled", coupled_block), ("dem", dem_block), ("fe", fe_block)):
+        for kind, work in blocks[repeat % 3:] + blocks[:repeat % 3]:  # each block first in turn
             before = engine.neighbors.n_builds
             times[kind].append(elapsed(lambda work=work: work(block)) / block)
             if kind in builds:
