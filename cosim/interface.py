@@ -31,7 +31,7 @@ class Interface:
     """Gather/scatter between the ``ExplicitSolid`` boundary groups ``names`` and a DEM ``FacetMesh``.
 
     ``facets`` (every rank) is the DEM facet mesh; its vertex k is the FE node with
-    global index ``global_nodes[k]``. Collective construction.
+    mesh-input index ``global_nodes[k]``. Collective construction.
     """
 
     def __init__(self, solid, names, material=0, smoothing_time=0.0):
@@ -42,8 +42,11 @@ class Interface:
         self.solid, self.comm = solid, solid.comm
         nodes = np.unique(np.concatenate([solid.boundary_nodes(n) for n in names]))
         self.owned_nodes = nodes[nodes < solid.n_owned_nodes]           # this rank's interface nodes
-        owned_global = solid.global_node_index[self.owned_nodes]
-        triangles = solid.global_node_index[np.concatenate([solid.facet_triangles(n) for n in names])]
+        # vertices ordered by the node's index in the mesh input (gmsh), not by DOLFINx's global
+        # index, which depends on the partition: the facet mesh, and a DEM checkpoint of it, are
+        # then the same for every rank count and partition
+        owned_global = solid.input_node_index[self.owned_nodes]
+        triangles = solid.input_node_index[np.concatenate([solid.facet_triangles(n) for n in names])]
         all_owned = self.comm.allgather(owned_global)
         all_triangles = self.comm.allgather(triangles)
         counts = [len(a) for a in all_owned]

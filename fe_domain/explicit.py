@@ -397,28 +397,62 @@ class ExplicitSolid:
                 callback(self)
 
     # ------------------------------------------------------------------ checkpoints
-    def checkpoint_state(self) -> dict:
-        """This rank's state (u, v, p, clock, energy accumulators) as arrays, for ``np.savez``.
+    _NODE_FIELDS = ("displacement", "velocity", "pressure", "velocity_change")
 
-        π needs no saving: step 1 recomputes it from p. Restore on the same mesh and rank count.
+    def checkpoint_state(self) -> dict:
+        """This rank's state (u, v, p, clock, energy accumulators) as arrays, for ``np.savez``,
+        with the mesh-input index of each local node (owned first), so that a run on another
+        partition or rank count can find its nodes (:meth:`restore_from_ranks`).
+
+        π needs no saving: step 1 recomputes it from p.
         """
         return {"displacement": self.displacement.copy(), "velocity": self.velocity.copy(),
                 "pressure": self.pressure.copy(), "velocity_change": self._velocity_change.copy(),
                 "clock": np.array([self.time, self.step_count, self.dt]),
                 "energy_accumulators": np.array([self._external_work, self._damping_work,
-                                                 self._stabilisation_dissipation])}
+                                                 self._stabilisation_dissipation]),
+                "input_node_index": self.input_node_index.copy(), "n_owned_nodes": np.int64(self.n_owned_nodes)}
+
+    def fits(self, state) -> bool:
+        """Whether ``state`` was written by this very partition (the same local nodes, in order)."""
+        if "input_node_index" not in state:
+            return state["displacement"].shape == self.displacement.shape
+        return np.array_equal(state["input_node_index"], self.input_node_index)
 
     def restore_state(self, state) -> None:
-        """Inverse of :meth:`checkpoint_state`."""
-        if state["displacement"].shape != self.displacement.shape:
-            raise ValueError("checkpoint was written for another mesh or rank count")
+        """Inverse of :meth:`checkpoint_state`, on the partition that wrote it (:meth:`fits`)."""
+        if not self.fits(state):
+            raise ValueError("checkpoint was written for another mesh partition or rank count")
         self.displacement[:] = state["displacement"]
         self.velocity[:] = state["velocity"]
         self.pressure[:] = state["pressure"]
         self._velocity_change[:] = state["velocity_change"]
+        self._restore_clock(state)
+        self._external_work, self._damping_work, self._stabilisation_dissipation = state["energy_accumulators"]
+
+    def restore_from_ranks(self, states) -> None:
+        """The state written by every rank of another partition (any rank count) of the same
+        mesh: each local node (owned and ghost) takes the values of the node with its mesh-input
+        index, from the rank that owned it. Nodal values are exact; the energy accumulators
+        (sums over each rank's owned nodes) go to rank 0 as their total, so the global sums
+        agree to round-off."""
+        keys = np.concatenate([st["input_node_index"][:int(st["n_owned_nodes"])] for st in states])
+        order = np.argsort(keys)
+        rows = np.searchsorted(keys, self.input_node_index, sorter=order)
+        rows = order[np.minimum(rows, len(keys) - 1)]
+        if not np.array_equal(keys[rows], self.input_node_index):
+            raise ValueError("checkpoint was written for another mesh")
+        for name, target in zip(self._NODE_FIELDS, (self.displacement, self.velocity, self.pressure,
+                                                    self._velocity_change), strict=True):
+            owned = [st[name][:int(st["n_owned_nodes"])] for st in states]
+            target[:] = np.concatenate(owned)[rows]
+        self._restore_clock(states[0])
+        totals = np.sum([st["energy_accumulators"] for st in states], axis=0) if self.comm.rank == 0 else np.zeros(3)
+        self._external_work, self._damping_work, self._stabilisation_dissipation = totals
+
+    def _restore_clock(self, state):
         self.time, step_count, self.dt = state["clock"]
         self.step_count = int(step_count)
-        self._external_work, self._damping_work, self._stabilisation_dissipation = state["energy_accumulators"]
 
     # ------------------------------------------------------------------ energies
     def energy_due(self) -> bool:

@@ -47,9 +47,13 @@ COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interfa
            "momentum_total_z", "unbalanced_force_ratio", "coordination_number"]
 
 
+FE_CHECKPOINT_STEM = "checkpoint.fe"
+
+
 def checkpoint_paths(out_dir, comm):
     """(DEM checkpoint: one file for all ranks, this rank's FE checkpoint)."""
-    return Path(out_dir) / "checkpoint.npz", Path(out_dir) / f"checkpoint.fe.rank{comm.rank}of{comm.size}.npz"
+    return (Path(out_dir) / "checkpoint.npz",
+            Path(out_dir) / f"{FE_CHECKPOINT_STEM}.rank{comm.rank}of{comm.size}.npz")
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -59,26 +63,17 @@ def prepare(case, case_path, out_dir, resume):
     from cosim.errors import CaseError
     comm = mpi_comm()
     dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
-    found = dem_checkpoint.exists() and fe_checkpoint.exists()
-    if resume and comm.allgather(found).count(False):
-        raise CaseError(case_path, "--resume", str(fe_checkpoint),
-                        f"no coupled checkpoint for {comm.size} rank(s) in the output folder (the FE part resumes "
-                        "with the rank count that wrote it); run without --resume")
+    if resume and comm.allgather(dem_checkpoint.exists()).count(False):
+        raise CaseError(case_path, "--resume", str(dem_checkpoint),
+                        "no coupled checkpoint in the output folder; run without --resume")
     solid = fe_app.build_solid(case, case_path)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
     interface = Interface(solid, case.coupling.interface, material, case.coupling.smoothing_time)
     distributed = comm if comm.size > 1 else None
     if resume:
-        with np.load(fe_checkpoint) as state:
-            fits = state["displacement"].shape == solid.displacement.shape
-            if fits:
-                solid.restore_state(state)
-                if "interface_held" in state:  # (before the last window's impulse joined it; absent: none)
-                    interface.held = state["interface_held"].copy()
-        if comm.allgather(fits).count(False):  # agreed: every rank refuses alike
-            raise CaseError(case_path, "--resume", str(fe_checkpoint),
-                            "the FE checkpoint does not fit this run's mesh partition (DOLFINx may partition the "
-                            "mesh differently from run to run under mpirun); run without --resume")
+        state = fe_app.restore_checkpoint(solid, case_path, out_dir, FE_CHECKPOINT_STEM)
+        if "interface_held" in state:  # (before the last window's impulse joined it; absent: none)
+            interface.held = state["interface_held"].copy()
         engine = dem_app.load_checkpoint(case_path, dem_checkpoint, comm=distributed)
         if abs(engine.time - solid.time) > 0.5 * engine.dt:  # killed between the two renames
             raise CaseError(case_path, "--resume", str(dem_checkpoint),

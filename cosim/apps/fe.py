@@ -4,7 +4,8 @@ with boundary conditions and loads by physical-group name, under ``mpirun -n N``
 Outputs: ``fields.xdmf`` (u, v, p, von Mises; ParaView), ``series.csv`` (reaction
 forces and the largest displacement), ``energies.csv`` (kinetic, strain, external
 work, damping, stabilisation, total), both streamed row by row, their PNG plots,
-and per-rank checkpoints (resume needs the same number of ranks).
+and per-rank checkpoints (a resume finds its nodes by mesh-input index, so any rank count
+and partition may continue them).
 """
 from __future__ import annotations
 
@@ -23,11 +24,6 @@ PROGRESS_CHUNK = 50  # steps between checks of the progress line and checkpoint 
 def prepare(case, case_path, out_dir, resume):
     """The solid: the mesh made and distributed, the operators assembled, the time step
     checked against the critical one, and the checkpoint to resume from found; collective."""
-    comm = mpi_comm()
-    checkpoint = Path(out_dir) / f"checkpoint.rank{comm.rank}of{comm.size}.npz"
-    if resume and not comm.allreduce(checkpoint.exists(), op=_mpi_land()):
-        raise CaseError(case_path, "--resume", str(checkpoint),
-                        f"no checkpoint for {comm.size} rank(s) in the output folder")
     solver = build_solid(case, case_path)
     dt = case.time.dt
     if dt is not None:
@@ -40,8 +36,7 @@ def prepare(case, case_path, out_dir, resume):
     from cosim.apps.dem import check_steps
     check_steps(case_path, case.time, solver.dt)
     if resume:
-        with np.load(checkpoint) as state:
-            solver.restore_state(state)
+        restore_checkpoint(solver, case_path, out_dir, "checkpoint")
     return solver
 
 
@@ -143,6 +138,51 @@ def check_finite(solver):
 def _max_displacement(solver):
     local = np.max(np.linalg.norm(solver.displacement[:solver.n_owned_nodes], axis=1), initial=0.0)
     return mpi_comm().allreduce(float(local), op=_mpi_max())
+
+
+def restore_checkpoint(solver, case_path, out_dir, stem):
+    """Restore ``solver`` from the FE checkpoint ``<stem>.rank<r>of<n>.npz`` files in ``out_dir``
+    and return the state it used (with any extra arrays); collective. This rank's own file
+    when every rank's fits its partition (bit-identical continuation); otherwise the newest
+    complete set of any rank count, each node found by its mesh-input index (DOLFINx may
+    partition the same mesh differently from run to run)."""
+    import re
+    comm = solver.comm
+    own = Path(out_dir) / f"{stem}.rank{comm.rank}of{comm.size}.npz"
+    state = _read(own) if own.exists() else None
+    if comm.allreduce(state is not None and solver.fits(state), op=_mpi_land()):
+        solver.restore_state(state)
+        return state
+    chosen = None
+    if comm.rank == 0:
+        found = {}
+        for path in Path(out_dir).glob(f"{stem}.rank*of*.npz"):
+            match = re.fullmatch(re.escape(stem) + r"\.rank(\d+)of(\d+)\.npz", path.name)
+            if match:
+                found.setdefault(int(match.group(2)), {})[int(match.group(1))] = path
+        complete = {n: files for n, files in found.items() if sorted(files) == list(range(n))}
+        if complete:
+            chosen = max(complete, key=lambda n: max(f.stat().st_mtime for f in complete[n].values()))
+    chosen = comm.bcast(chosen, root=0)
+    if chosen is None:
+        raise CaseError(case_path, "--resume", str(own), "no complete set of FE checkpoint files in the output "
+                                                          "folder; run without --resume")
+    states = [_read(Path(out_dir) / f"{stem}.rank{r}of{chosen}.npz") for r in range(chosen)]
+    failure = None
+    try:
+        solver.restore_from_ranks(states)
+    except (KeyError, ValueError) as exc:
+        failure = str(exc)
+    failure = next((f for f in comm.allgather(failure) if f is not None), None)  # every rank alike
+    if failure is not None:
+        raise CaseError(case_path, "--resume", str(own), f"the FE checkpoint does not fit this mesh ({failure}); "
+                                                          "run without --resume")
+    return states[0]
+
+
+def _read(path):
+    with np.load(path) as data:
+        return {key: data[key] for key in data.files}
 
 
 def write_checkpoint(solver, path, extra=None):

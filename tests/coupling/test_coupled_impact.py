@@ -87,6 +87,18 @@ def test_more_ranks_give_the_one_rank_result_and_conserve_momentum(one_rank, tmp
         assert drift.max() < 1e-12 * p0, axis
 
 
+def test_a_two_rank_checkpoint_resumes_on_one_rank(one_rank, tmp_path):
+    """Half the run on 2 ranks, the rest on 1 (the DEM from its rank-count-free checkpoint, the
+    FE nodes found by their mesh-input index): the 1-rank history to the CSV's 10 digits."""
+    case, s1 = one_rank
+    out = tmp_path / "split"
+    run(case, out, "--set", "time.duration=0.003", mpi=2)
+    s, stdout = run(case, out, "--resume")
+    assert "resumed at FE step" in stdout
+    for key in ("momentum_fe_z", "momentum_dem_z", "interface_displacement_z"):
+        np.testing.assert_allclose(s[key], s1[key], rtol=1e-8, atol=1e-9 * np.abs(s1[key]).max(), err_msg=key)
+
+
 def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
     # stiffer grains: the DEM step is 4x+ below the FE step; grains close to the plate
     case = impact_case(tmp_path, grain_young=2.0e8, duration=0.004, name="stiff", cloud_bottom=-0.0016)
