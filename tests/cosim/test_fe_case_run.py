@@ -115,3 +115,9 @@ def test_a_checkpoint_resumes_on_another_rank_count_and_partition(tmp_path):
     assert len(steps) >= 10 and steps[-1] == 400
     resumed, one = resumed[np.isin(resumed[:, 1], steps)], one[np.isin(one[:, 1], steps)]
     np.testing.assert_allclose(resumed, one, rtol=1e-8, atol=1e-8 * np.abs(one).max())
+
+
+def test_resume_without_a_checkpoint_is_bad_input(tmp_path):
+    res = subprocess.run([str(COSIM), "run", str(block_case(tmp_path)), "--out", str(tmp_path / "none"), "--resume"],
+                         capture_output=True, text=True, timeout=300, env=ENV, cwd=ROOT)
+    assert res.returncode == 2 and "no complete set of FE checkpoint files" in res.stderr
