@@ -31,7 +31,7 @@ class Interface:
     """Gather/scatter between the ``ExplicitSolid`` boundary groups ``names`` and a DEM ``FacetMesh``.
 
     ``facets`` (every rank) is the DEM facet mesh; its vertex k is the FE node with
-    mesh-input index ``global_nodes[k]``. Collective construction.
+    mesh-input index ``input_nodes[k]``. Collective construction.
     """
 
     def __init__(self, solid, names, material=0, smoothing_time=0.0):
@@ -45,24 +45,24 @@ class Interface:
         # vertices ordered by the node's index in the mesh input (gmsh), not by DOLFINx's global
         # index, which depends on the partition: the facet mesh, and a DEM checkpoint of it, are
         # then the same for every rank count and partition
-        owned_global = solid.input_node_index[self.owned_nodes]
+        owned_input = solid.input_node_index[self.owned_nodes]
         triangles = solid.input_node_index[np.concatenate([solid.facet_triangles(n) for n in names])]
-        all_owned = self.comm.allgather(owned_global)
+        all_owned = self.comm.allgather(owned_input)
         all_triangles = self.comm.allgather(triangles)
         counts = [len(a) for a in all_owned]
         self._rows = slice(sum(counts[:self.comm.rank]), sum(counts[:self.comm.rank + 1]))  # this rank's rows
         gathered = np.concatenate(all_owned)
         order = np.argsort(gathered)
-        self.global_nodes = gathered[order]
-        if len(np.unique(self.global_nodes)) != len(self.global_nodes):
+        self.input_nodes = gathered[order]
+        if len(np.unique(self.input_nodes)) != len(self.input_nodes):
             raise RuntimeError(f"interface '{name}': a node is owned by two ranks")
         self._from_gathered = order                     # gathered row -> vertex: vertex k = row order[k]
         self._vertex_of_row = np.argsort(order)         # vertex of each gathered row
-        tri = np.searchsorted(self.global_nodes, np.concatenate(all_triangles).reshape(-1, 3))
+        tri = np.searchsorted(self.input_nodes, np.concatenate(all_triangles).reshape(-1, 3))
         if len(tri) == 0:
             raise ValueError(f"interface '{name}' has no facets")
         positions, velocities = self._gathered_state()
-        self.facets = FacetMesh(positions, tri, material=material, source_nodes=self.global_nodes)
+        self.facets = FacetMesh(positions, tri, material=material, source_nodes=self.input_nodes)
         self.facets.set_vertex_state(positions, velocities)
         self._traction_field = None
         self.smoothing_time = float(smoothing_time)

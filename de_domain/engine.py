@@ -506,7 +506,7 @@ class Engine:
             out[k] = getattr(self, k).nbytes
         out.update(self.neighbors.memory_bytes())
         p = self.particles
-        if p.n:  # copies in the spatial order during run(n ≥ SORTED_MIN_STEPS), and in every distributed run
+        if p.n:  # buffers of the copies in the spatial order, kept after the first run(n ≥ SORTED_MIN_STEPS)
             per = 6 * 24 + 3 * 8 + 4 + 24 + 1  # pos vel acc angvel force torque, radius mass inertia, material,
             if p.blocked.any() or p.prescribed.any():  # ref_pos, ghost
                 per += 6 + 6 + 48
