@@ -1,10 +1,11 @@
 """Specimen generation to a target void ratio (docs/design.md §3.2).
 
-Two methods, both in a square box of side ``L`` and final height ``H`` with frictionless
+Two methods, both in a box of sides ``L`` (x) and ``L_y`` (y; default L) and final height
+``H`` with frictionless
 side walls, a rough bottom and a rough compaction plate on top:
 
 * :func:`under_compaction` — multi-layer under-compaction (Jiang, Konrad & Leroueil
-  2003; thesis §4.2.1): the solid volume V_s = L² H / (1 + e) is split into N layers
+  2003; thesis §4.2.1): the solid volume V_s = L L_y H / (1 + e) is split into N layers
   of equal solid volume. Each layer is generated as a non-overlapping cloud just above
   the current surface, falls under gravity and is pushed down by the plate until the
   layer top reaches
@@ -16,7 +17,7 @@ side walls, a rough bottom and a rough compaction plate on top:
   then holds its height until the unbalanced force ratio is below 0.01 and the next
   layer starts. The number of layers follows from the target: a cloud may hold at most
   ``cloud_solid_fraction`` of solids over a generation height H, so
-  N = ⌈V_s / (cloud_solid_fraction · L² H)⌉ = ⌈1 / ((1 + e) cloud_solid_fraction)⌉,
+  N = ⌈V_s / (cloud_solid_fraction · L L_y H)⌉ = ⌈1 / ((1 + e) cloud_solid_fraction)⌉,
   capped so that a layer is at least 1.5 of the largest grains thick: a thinner layer
   is mostly the loose zones along the plates below and above it and cannot be pushed
   to the mean void ratio (full-size thesis sand, 1.3 d_max layers: > 300 kPa at μ = 0.1).
@@ -33,12 +34,12 @@ side walls, a rough bottom and a rough compaction plate on top:
   rolling spheres find (e.g. Jiang, Yu & Harris, Géotechnique 2005; Wensrich &
   Katterfeld, Powder Technol. 2012).
 * :func:`radius_expansion` — the spheres of the whole specimen are placed at reduced
-  radii in the closed box (L × L × H) and grown to full size in small increments
+  radii in the closed box (L × L_y × H) and grown to full size in small increments
   without gravity; the void ratio is then exact by construction if the grains jam in
   the box, and otherwise the specimen settles under gravity and is re-measured.
 
 In both methods the achieved void ratio is measured with the plate in contact (seated
-at ``seat_stress``): e = (L² z_plate − V_s) / V_s.
+at ``seat_stress``): e = (L L_y z_plate − V_s) / V_s.
 
 Mass scaling: during generation only, every density is multiplied by ``density_scale``
 s (dt grows by √s) and gravity is divided by s, so the weight of every grain — and the
@@ -153,7 +154,7 @@ def void_ratio_of_box(area, height, radii):
 class GenerationSettings:
     """Inputs shared by both methods (units: m, s, Pa)."""
 
-    box_length: float
+    box_length: float                 # L, along x
     height: float
     void_ratio: float
     sand: object                      # de_domain.Material of the grains (real density)
@@ -179,6 +180,16 @@ class GenerationSettings:
     max_steps_per_layer: int = 200000
     seed: int = 0
     check_every: int = 50
+    box_width: float | None = None    # L_y, along y; None = box_length (a square box)
+
+    @property
+    def sides(self):
+        """(L, L_y) of the box."""
+        return self.box_length, self.box_length if self.box_width is None else self.box_width
+
+    @property
+    def area(self):
+        return self.sides[0] * self.sides[1]
 
 
 @dataclass
@@ -220,9 +231,9 @@ def _materials(s, friction):
 
 def _box_walls(s, plate_z):
     from . import PlaneWall
-    L = s.box_length
+    L, Ly = s.sides
     walls = [PlaneWall((0, 0, 0), (1, 0, 0), 1), PlaneWall((L, 0, 0), (-1, 0, 0), 1),
-             PlaneWall((0, 0, 0), (0, 1, 0), 1), PlaneWall((0, L, 0), (0, -1, 0), 1),
+             PlaneWall((0, 0, 0), (0, 1, 0), 1), PlaneWall((0, Ly, 0), (0, -1, 0), 1),
              PlaneWall((0, 0, 0), (0, 0, 1), 2), PlaneWall((0, 0, plate_z), (0, 0, -1), 2)]
     return walls
 
@@ -239,7 +250,7 @@ def _engine(s, pos, radii, vel, angvel, friction, plate_z, gravity, dt=None, com
 
 
 def _plate_stress(engine, s):
-    return float(engine.walls[5].force[2]) / s.box_length**2
+    return float(engine.walls[5].force[2]) / s.area
 
 
 def _unbalanced(engine):
@@ -345,7 +356,7 @@ def under_compaction(diameters, s: GenerationSettings, log=None, comm=None):
     specimen (their volume fixes V_s). Returns a :class:`Specimen`. With ``comm``, every
     stage's DEM is spread over its ranks (collective; the same specimen, bit for bit)."""
     rng = np.random.default_rng(s.seed)
-    L, H = s.box_length, s.height
+    (L, Ly), H = s.sides, s.height
     n_layers = s.layers or layer_count(s.void_ratio, s.cloud_solid_fraction, H, float(np.max(diameters)))
     groups = split_into_layers(np.asarray(diameters, float), n_layers, rng)
     tops = layer_tops(n_layers, H, s.undercompaction)
@@ -359,10 +370,10 @@ def under_compaction(diameters, s: GenerationSettings, log=None, comm=None):
     for k, (group, z_k) in enumerate(zip(groups, tops, strict=True), start=1):
         r_new = 0.5 * group
         surface = float(np.max(pos[:, 2] + radii)) if len(radii) else 0.0
-        cloud_height = np.sum(np.pi / 6 * group**3) / (s.cloud_solid_fraction * L * L)
+        cloud_height = np.sum(np.pi / 6 * group**3) / (s.cloud_solid_fraction * s.area)
         lo = np.array([0.0, 0.0, surface])
         for attempt in range(8):
-            hi = np.array([L, L, surface + cloud_height * 1.25**attempt + 2 * r_new.max()])
+            hi = np.array([L, Ly, surface + cloud_height * 1.25**attempt + 2 * r_new.max()])
             try:
                 new_pos, r_new = random_cloud(r_new, lo, hi, seed=s.seed + k + 1000 * attempt)
                 break
@@ -401,18 +412,18 @@ def _specimen(engine, s, method, steps, stages):
     """The :class:`Specimen` in ``engine`` (collective when distributed)."""
     grains = engine.global_particles()
     height = float(engine.walls[5].point[2])
-    e = void_ratio_of_box(s.box_length * s.box_length, height, grains.radius)
+    e = void_ratio_of_box(s.area, height, grains.radius)
     return Specimen(grains.pos.copy(), grains.radius.copy(), height, e, method, steps, stages)
 
 
 def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, steps_per_increment=100, comm=None):
     """Grow the grains from reduced radii to full size in the closed box (module docstring);
     ``comm`` as for :func:`under_compaction`."""
-    L, H = s.box_length, s.height
+    (L, Ly), H = s.sides, s.height
     radii_full = 0.5 * np.asarray(diameters, float)
-    solid_fraction = np.sum(4 / 3 * np.pi * radii_full**3) / (L * L * H)
+    solid_fraction = np.sum(4 / 3 * np.pi * radii_full**3) / (s.area * H)
     shrink = min(1.0, (s.cloud_solid_fraction / solid_fraction) ** (1.0 / 3.0))
-    pos, r0 = random_cloud(radii_full * shrink, (0, 0, 0), (L, L, H), seed=s.seed)
+    pos, r0 = random_cloud(radii_full * shrink, (0, 0, 0), (L, Ly, H), seed=s.seed)
     order = np.argsort(-radii_full, kind="stable")  # random_cloud returns radii largest first
     radii_full = radii_full[order]
     friction = _start_friction(s)

@@ -158,7 +158,9 @@ def msh_to_vtu(msh_path: str | Path, out_path: str | Path) -> Path:
 
 
 def _generate(path: Path, mesh_size: float, parameters: dict[str, float] | None) -> None:
-    """Open ``path`` in the (initialised) gmsh session and mesh it in 3D."""
+    """Open ``path`` in the (initialised) gmsh session and mesh it in 3D: elements of at most
+    ``mesh_size`` and at least half of it, unless the source sets ``Mesh.MeshSizeMin`` itself
+    (a source with a size field that refines below ``mesh_size``, e.g. meshes/trench.geo)."""
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.onelab.clear()  # ONELAB values outlive gmsh.finalize(): drop the last file's
     for name, value in (parameters or {}).items():
@@ -167,7 +169,8 @@ def _generate(path: Path, mesh_size: float, parameters: dict[str, float] | None)
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
-    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
+    if gmsh.option.getNumber("Mesh.MeshSizeMin") == 0.0:  # a source refining with a size field sets its own
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
     gmsh.model.mesh.generate(3)
 
 

@@ -56,6 +56,8 @@ from cosim.outputs import (
     say,
     write_run_metadata,
 )
+from cosim.specimen import SpecimenBox, curve_of, read_specimen
+from cosim.specimen import make_specimen as generated_specimen
 
 CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
@@ -74,12 +76,6 @@ def materials(case):
     mats = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in case.dem.materials]
     ds = case.direct_shear
     return mats, names.index(ds.sand_material), names.index(ds.side_wall_material), names.index(ds.plate_material)
-
-
-def curve_of(sp):
-    from de_domain.deposition import specimen_curve
-    return specimen_curve(sp.sieve, sp.sieve_diameters, sp.sieve_passing, sp.scale, sp.truncate_below,
-                          sp.truncate_above)
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -130,70 +126,18 @@ def _one_grain(case, radius):
     return Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt)
 
 
-def read_specimen(path):
-    """(positions, radii, height, void ratio or None) of a packing file; the height is
-    the stored plate height (npz from this app) or the top of the highest grain."""
-    from de_domain.packing import load_packing
-    pos, radii = load_packing(path)
-    height, e = None, None
-    if str(path).endswith(".npz"):
-        with np.load(path) as data:
-            height = float(data["height"]) if "height" in data else None
-            e = float(data["void_ratio"]) if "void_ratio" in data else None
-    if height is None:
-        height = float(np.max(pos[:, 2] + radii))
-    return pos, radii, height, e
-
-
 # --------------------------------------------------------------------------- 1. specimen
 def make_specimen(case, built, out_dir, cache=None, comm=None):
-    """Load or generate the specimen; returns (positions, radii, height, info dict). With
-    ``comm``, collective: the generation's DEM is spread over the ranks, rank 0 writes."""
-    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
-    from de_domain.packing import save_packing
+    """Load or generate the specimen in the L × L shear box (cosim.specimen.make_specimen);
+    returns (positions, radii, height, info dict); collective with ``comm``."""
     sp, ds = case.specimen, case.direct_shear
-    name = case.case.name
-    if cache is not None and Path(cache).exists():
-        pos, radii, height, e = read_specimen(cache)
-        say(f"[{name}] specimen from {cache}: {len(radii)} grains, h = {height * 1e3:.3f} mm, e = {e:.4f}")
-        return pos, radii, height, {"source": str(cache), "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
-    if sp.source == "file":
+    if sp.source == "file" and not (cache is not None and Path(cache).exists()):
         pos, radii, height, e = built["packing"]
-        say(f"[{name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
+        say(f"[{case.case.name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
         return pos, radii, height, {"source": sp.file, "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
     mats, sand, wall, plate = materials(case)
-    L, H = ds.box_length, ds.sample_height
-    rng = np.random.default_rng(case.case.seed)
-    diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, L * L * H), rng)
-    say(f"[{name}] generating the specimen ({sp.method}): {len(diameters)} grains, "
-        f"d = {diameters.min() * 1e3:.2f}-{diameters.max() * 1e3:.2f} mm, target e = {sp.void_ratio}")
-    settings = GenerationSettings(
-        box_length=L, height=H, void_ratio=sp.void_ratio, sand=mats[sand], wall=mats[wall], plate=mats[plate],
-        friction=sp.deposition_friction, rolling_friction=sp.deposition_rolling_friction,
-        rolling_stiffness=sp.deposition_rolling_stiffness, density_scale=sp.density_scale,
-        gravity=tuple(case.dem.gravity),
-        local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
-        contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
-        plate_stress_limit=sp.plate_stress_limit, friction_reduction=sp.friction_reduction,
-        hold_friction=sp.hold_friction, layers=sp.layers,
-        undercompaction=sp.undercompaction, cloud_solid_fraction=sp.cloud_solid_fraction,
-        max_steps_per_layer=sp.max_steps_per_layer,
-        seed=case.case.seed)
-    t0 = time.perf_counter()
-    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm)
-    wall_clock = time.perf_counter() - t0
-    ok = abs(specimen.void_ratio - sp.void_ratio) <= sp.tolerance
-    say(f"[{name}] specimen: e = {specimen.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
-        f"{'OK' if ok else 'MISSED'}), h = {specimen.height * 1e3:.3f} mm, {specimen.steps} steps, {wall_clock:.0f} s")
-    targets = [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else [])
-    for target in targets if is_root() else []:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        save_packing(target, specimen.positions, specimen.radii, height=specimen.height,
-                     void_ratio=specimen.void_ratio, method=specimen.method)
-    info = {"source": sp.method, "void_ratio_generated": specimen.void_ratio, "void_ratio_target": sp.void_ratio,
-            "void_ratio_within_tolerance": bool(ok), "generation_steps": specimen.steps,
-            "generation_wall_clock_s": wall_clock, "generation_log": specimen.log}
-    return specimen.positions, specimen.radii, specimen.height, info
+    box = SpecimenBox(ds.box_length, ds.box_length, ds.sample_height, mats, sand, wall, plate)
+    return generated_specimen(case, box, built.get("curve"), out_dir, cache, comm)
 
 
 # --------------------------------------------------------------------------- 2. shear box

@@ -1,0 +1,99 @@
+"""The ``[specimen]`` section: a granular specimen generated to a target void ratio in a box
+(``de_domain.deposition``, docs/design.md §3.2) or read from a packing file, with an
+optional cache file. Used by the ``direct_shear`` kind (the shear box) and the ``footing``
+kind (the DEM zone of the coupled model, or the whole all-DEM domain)."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cosim.outputs import is_root, say
+
+
+@dataclass(frozen=True)
+class SpecimenBox:
+    """The box a specimen is made in: x ∈ [0, length], y ∈ [0, width], final height ``height``
+    (m), and the ids of the materials of the grains, the frictionless side walls and the rough
+    bottom and compaction plate among ``materials`` (de_domain Materials)."""
+    length: float
+    width: float
+    height: float
+    materials: list
+    sand: int
+    side_wall: int
+    plate: int
+
+
+def curve_of(sp):
+    """The sieve curve of a [specimen] section (preset or custom, scaled, truncated)."""
+    from de_domain.deposition import specimen_curve
+    return specimen_curve(sp.sieve, sp.sieve_diameters, sp.sieve_passing, sp.scale, sp.truncate_below,
+                          sp.truncate_above)
+
+
+def read_specimen(path):
+    """(positions, radii, height, void ratio or None) of a packing file; the height is
+    the stored plate height (npz made here) or the top of the highest grain."""
+    from de_domain.packing import load_packing
+    pos, radii = load_packing(path)
+    height, e = None, None
+    if str(path).endswith(".npz"):
+        with np.load(path) as data:
+            height = float(data["height"]) if "height" in data else None
+            e = float(data["void_ratio"]) if "void_ratio" in data else None
+    if height is None:
+        height = float(np.max(pos[:, 2] + radii))
+    return pos, radii, height, e
+
+
+def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None):
+    """Generate the specimen of ``case.specimen`` in ``box`` (or read it from ``cache`` if that
+    file exists); returns (positions, radii, height, info dict). Writes ``specimen.npz`` in
+    ``out_dir`` (and ``cache``). With ``comm``, collective: the generation's DEM is spread over
+    the ranks, rank 0 writes."""
+    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
+    from de_domain.packing import save_packing
+    sp = case.specimen
+    name = label or case.case.name
+    if cache is not None and Path(cache).exists():
+        pos, radii, height, e = read_specimen(cache)
+        say(f"[{name}] specimen from {cache}: {len(radii)} grains, h = {height * 1e3:.3f} mm, e = {e:.4f}")
+        return pos, radii, height, {"source": str(cache), "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
+    mats = box.materials
+    rng = np.random.default_rng(case.case.seed)
+    volume = box.length * box.width * box.height
+    diameters = diameters_for_solid_volume(curve, solid_volume_for(sp.void_ratio, volume), rng)
+    say(f"[{name}] generating the specimen ({sp.method}) in {box.length * 1e3:.1f} x {box.width * 1e3:.1f} x "
+        f"{box.height * 1e3:.1f} mm: {len(diameters)} grains, "
+        f"d = {diameters.min() * 1e3:.2f}-{diameters.max() * 1e3:.2f} mm, target e = {sp.void_ratio}")
+    settings = GenerationSettings(
+        box_length=box.length, box_width=box.width, height=box.height, void_ratio=sp.void_ratio,
+        sand=mats[box.sand], wall=mats[box.side_wall], plate=mats[box.plate],
+        friction=sp.deposition_friction, rolling_friction=sp.deposition_rolling_friction,
+        rolling_stiffness=sp.deposition_rolling_stiffness, density_scale=sp.density_scale,
+        gravity=tuple(case.dem.gravity),
+        local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
+        contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
+        plate_stress_limit=sp.plate_stress_limit, friction_reduction=sp.friction_reduction,
+        hold_friction=sp.hold_friction, layers=sp.layers,
+        undercompaction=sp.undercompaction, cloud_solid_fraction=sp.cloud_solid_fraction,
+        max_steps_per_layer=sp.max_steps_per_layer,
+        seed=case.case.seed)
+    t0 = time.perf_counter()
+    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm)
+    wall_clock = time.perf_counter() - t0
+    ok = abs(specimen.void_ratio - sp.void_ratio) <= sp.tolerance
+    say(f"[{name}] specimen: e = {specimen.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
+        f"{'OK' if ok else 'MISSED'}), h = {specimen.height * 1e3:.3f} mm, {specimen.steps} steps, {wall_clock:.0f} s")
+    targets = [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else [])
+    for target in targets if is_root() else []:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        save_packing(target, specimen.positions, specimen.radii, height=specimen.height,
+                     void_ratio=specimen.void_ratio, method=specimen.method)
+    info = {"source": sp.method, "void_ratio_generated": specimen.void_ratio, "void_ratio_target": sp.void_ratio,
+            "void_ratio_within_tolerance": bool(ok), "generation_steps": specimen.steps,
+            "generation_wall_clock_s": wall_clock, "generation_log": specimen.log}
+    return specimen.positions, specimen.radii, specimen.height, info
