@@ -16,9 +16,9 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN       := mpirun --oversubscribe --bind-to none  # unbound: Numba threads may use both cores
-DEMO_CASE    ?= runs/coupled_footing_on_sand.toml
+DEMO_CASE    ?= runs/footing_small.toml
 
-.PHONY: setup demo demo-shear lab-series test test-slow bench bench-peers bench-mpi bench-coupled clean
+.PHONY: setup demo demo-plate demo-shear lab-series test test-slow bench bench-peers bench-mpi bench-coupled clean
 
 setup: apt-packages $(STAMP)
 
@@ -43,8 +43,14 @@ $(STAMP): pyproject.toml Makefile
 	$(PY) -c "import numpy, numba, mpi4py, dolfinx; assert numpy.__file__.startswith('/usr/lib/python3/'), 'a second numpy shadows Debian numpy: ' + numpy.__file__"
 	@touch $(STAMP)
 
+# the flagship: a strip footing on a DEM zone embedded in an FE soil block, then its all-DEM
+# reference from the same case, and their comparison (runs/out/footing_small/comparison.png)
 demo: setup
 	$(VENV)/bin/cosim run $(DEMO_CASE)
+	$(VENV)/bin/cosim run $(DEMO_CASE) --set footing.model=dem
+
+demo-plate: setup
+	$(VENV)/bin/cosim run runs/coupled_footing_on_sand.toml
 
 demo-shear: setup
 	$(VENV)/bin/cosim run runs/direct_shear_small.toml

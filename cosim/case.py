@@ -39,11 +39,13 @@ class CaseInfo(_Section):
     name: str = Field(
         pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$",
         description="case name: letters, digits, '.', '_', '-' (at most 100, no path); outputs go to runs/out/<name>/")
-    kind: Literal["dem", "direct_shear", "fe", "coupled"] = Field(
+    kind: Literal["dem", "direct_shear", "fe", "coupled", "footing"] = Field(
         description="what to run: 'dem' (a DEM simulation of particles and walls), "
                     "'direct_shear' (specimen generation + the direct shear test, docs/design.md §3), "
                     "'fe' (the explicit mixed u-p solid on a gmsh mesh, docs/design.md §4), "
-                    "'coupled' (FE solid and DEM particles through an interface, docs/design.md §5)")
+                    "'coupled' (FE solid and DEM particles through an interface, docs/design.md §5), "
+                    "'footing' (a rigid strip footing pushed into a DEM zone embedded in an FE soil block, "
+                    "or into an all-DEM block of the same size, docs/design.md §7)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -336,6 +338,63 @@ class CouplingSection(_Section):
                     "stays in transit (momentum exactly conserved); 0: off, the whole window's impulse [s]")
 
 
+# --------------------------------------------------------------------------- footing (docs/design.md §7)
+class FootingSection(_Section):
+    model: Literal["coupled", "dem"] = Field(
+        default="coupled",
+        description="'coupled': grains in the zone only, an FE soil block around them; 'dem': the all-DEM "
+                    "reference, the whole soil block made of the same grains between rigid walls")
+    width: float = Field(gt=0, description="footing width B along x (it spans the slice along y) [m]")
+    velocity: float = Field(default=0.05, gt=0, description="downward speed of the rigid footing [m/s]")
+    settlement: float = Field(
+        default=0.1, gt=0, le=0.5,
+        description="the run ends at this settlement, as a fraction of B [-]")
+    rows: int = Field(default=100, ge=10, le=100000, description="CSV rows over the settlement [-]")
+    material: str = Field(default="plate", description="material name of the footing ([[dem.materials]])")
+    sand_material: str = Field(default="sand", description="material name of the grains")
+    side_wall_material: str = Field(
+        default="side_wall",
+        description="material of the frictionless walls: the y walls of the slice, the x walls of the all-DEM "
+                    "block (the FE block's rollers), the generation box's sides")
+    rest_unbalanced_force: float = Field(
+        default=1e-3, gt=0, le=0.1,
+        description="the model is at rest under gravity (before loading) when the unbalanced force ratio is "
+                    "below this [-]")
+    max_rest_time: float = Field(default=0.5, gt=0, description="safety cap on the simulated rest phase [s]")
+
+
+class SoilSection(_Section):
+    width: float = Field(gt=0, description="soil block width W along x (all-DEM: the box) [m]")
+    depth: float = Field(gt=0, description="soil block depth H along z [m]")
+    thickness: float = Field(gt=0, description="slice thickness L_y along y, walls or rollers on both faces [m]")
+    E: float = Field(gt=0, description="Young's modulus of the FE soil (e.g. from `cosim lab elastic`) [Pa]")
+    nu: float = Field(ge=0, lt=0.5, description="Poisson's ratio of the FE soil [-]")
+    rho: Optional[float] = Field(
+        default=None, gt=0,
+        description="density of the FE soil [kg/m^3]; default the bulk density of the zone's packing")
+    mesh_size: float = Field(gt=0, description="largest FE element size, far from the zone [m]")
+    interface_mesh_size: float = Field(gt=0, description="FE element size at the zone's faces [m]")
+    refinement_distance: Optional[float] = Field(
+        default=None, gt=0,
+        description="distance from the zone over which the element size grows to mesh_size [m]; default the "
+                    "zone depth")
+    damping: float = Field(
+        default=0.5, ge=0, lt=1,
+        description="local non-viscous damping of the FE soil (quasi-static, as the grains' [dem] one) [-]")
+
+
+class ZoneSection(_Section):
+    width: float = Field(gt=0, description="width w of the DEM zone (trench cavity) along x, centred [m]")
+    depth: float = Field(gt=0, description="depth d of the DEM zone below the soil surface [m]")
+    interface_material: str = Field(
+        default="sand",
+        description="material of the zone's faces as the grains see them (coupled: the FE interface; all-DEM: "
+                    "the block's bottom)")
+    subcycles: Optional[int] = Field(
+        default=None, ge=1,
+        description="DEM steps per FE step [-]; default the largest the FE stability allows")
+
+
 class Case(_Section):
     case: CaseInfo
     time: TimeSection
@@ -345,6 +404,9 @@ class Case(_Section):
     direct_shear: Optional[DirectShearSection] = None
     fe: Optional[FeSection] = None
     coupling: Optional[CouplingSection] = None
+    footing: Optional[FootingSection] = None
+    soil: Optional[SoilSection] = None
+    zone: Optional[ZoneSection] = None
 
 
 # --------------------------------------------------------------------------- loading
@@ -496,6 +558,7 @@ SECTIONS_OF_KIND = {
     "direct_shear": ("case", "time", "output", "dem", "specimen", "direct_shear"),
     "fe": ("case", "time", "output", "fe"),
     "coupled": ("case", "time", "output", "dem", "fe", "coupling"),
+    "footing": ("case", "time", "output", "dem", "specimen", "footing", "soil", "zone"),
 }
 
 # keys a kind (or a choice inside a table) does not use: (table, keys, when, why).
@@ -504,6 +567,11 @@ _UNUSED = [
     ("time", ("dt",), lambda c, s: c.case.kind == "coupled",
      "a coupled run takes dt_FE = subcycles x dt_DEM within both stability limits; "
      "set time.safety_factor and coupling.subcycles instead"),
+    ("time", ("dt",), lambda c, s: c.case.kind == "footing",
+     "a footing run takes dt = time.safety_factor x the critical step (of the DEM and the FE, with "
+     "zone.subcycles DEM steps per FE step), the same for both models"),
+    ("output", ("interval",), lambda c, s: c.case.kind == "footing",
+     "a footing run writes footing.rows CSV rows over the settlement; set rows instead"),
     ("output", ("interval",), lambda c, s: c.case.kind == "direct_shear",
      "a direct_shear run writes direct_shear.rows CSV rows over the shear distance; set rows instead"),
     ("output", ("vtk",), lambda c, s: c.case.kind == "fe",
@@ -570,6 +638,9 @@ def _check_consistency(path, case):
     _check_used(path, case)
     if case.case.kind == "direct_shear":
         _check_direct_shear(path, case)
+        return
+    if case.case.kind == "footing":
+        _check_footing(path, case)
         return
     if (t.duration is None) == (t.steps is None):
         raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
@@ -767,13 +838,8 @@ def _check_direct_shear(path, case):
     if dem.walls:
         raise CaseError(path, "dem.walls", len(dem.walls),
                         "a direct_shear case builds the shear box itself; remove [[dem.walls]]")
-    names = [m.name for m in dem.materials]
-    for i, name in enumerate(names):
-        if name in names[:i]:
-            raise CaseError(path, f"dem.materials[{i}].name", name, "material names must be unique")
-    for key in ("sand_material", "side_wall_material", "plate_material"):
-        if getattr(ds, key) not in names:
-            raise CaseError(path, f"direct_shear.{key}", getattr(ds, key), f"must be one of the materials: {names}")
+    _check_materials(path, dem, [(f"direct_shear.{key}", getattr(ds, key))
+                                 for key in ("sand_material", "side_wall_material", "plate_material")])
     if ds.shear_distance >= ds.box_length:
         raise CaseError(path, "direct_shear.shear_distance", ds.shear_distance,
                         f"must be smaller than box_length = {ds.box_length} m")
@@ -791,6 +857,26 @@ def _check_direct_shear(path, case):
         warn(path, "direct_shear.sample_height", ds.sample_height,
              f"the box is less than twice as wide as the specimen is high (ASTM D3080: box_length >= 2 h = "
              f"{2 * ds.sample_height} m); the side walls will carry much of the load")
+    d_max = _largest_grain(path, sp)
+    if d_max >= 0.5 * ds.sample_height:
+        raise CaseError(path, "specimen.truncate_above", sp.truncate_above,
+                        f"the largest grain ({d_max * 1e3:.2f} mm after scaling) must be below half the sample height "
+                        f"({0.5e3 * ds.sample_height:.2f} mm); set truncate_above or a smaller scale")
+
+
+def _check_materials(path, dem, keys):
+    """Unique material names, and every ``(dotted key, name)`` of ``keys`` one of them."""
+    names = [m.name for m in dem.materials]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise CaseError(path, f"dem.materials[{i}].name", name, "material names must be unique")
+    for key, name in keys:
+        if name not in names:
+            raise CaseError(path, key, name, f"must be one of the materials: {names}")
+
+
+def _largest_grain(path, sp):
+    """d_max (m) of the sieve curve of a generated [specimen]; its errors as CaseErrors."""
     from de_domain.packing import SIEVE_PRESETS
     if (sp.sieve_diameters is None) != (sp.sieve_passing is None):
         raise CaseError(path, "specimen.sieve_diameters / sieve_passing", (sp.sieve_diameters, sp.sieve_passing),
@@ -803,8 +889,54 @@ def _check_direct_shear(path, case):
                                sp.truncate_below, sp.truncate_above)
     except ValueError as exc:
         raise CaseError(path, "specimen", "sieve curve", str(exc)) from None
-    d_max = curve.diameters[-1]
-    if d_max >= 0.5 * ds.sample_height:
-        raise CaseError(path, "specimen.truncate_above", sp.truncate_above,
-                        f"the largest grain ({d_max * 1e3:.2f} mm after scaling) must be below half the sample height "
-                        f"({0.5e3 * ds.sample_height:.2f} mm); set truncate_above or a smaller scale")
+    return float(curve.diameters[-1])
+
+
+GRAINS_ACROSS = 3  # a DEM zone or slice narrower than this many of the largest grains is refused
+
+
+def _check_footing(path, case):
+    """A footing case (docs/design.md §7): [dem] materials, [specimen], [footing], [soil], [zone];
+    the run ends at the footing's final settlement, so [time] only sets safety_factor."""
+    t = case.time
+    if t.duration is not None or t.steps is not None:
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
+                        "a footing run lasts until footing.settlement; give only time.safety_factor")
+    dem, sp, ft, soil, zone = case.dem, case.specimen, case.footing, case.soil, case.zone
+    for section in ("dem", "specimen", "footing", "soil", "zone"):
+        if getattr(case, section) is None:
+            raise CaseError(path, section, None, f"a case of kind 'footing' needs a [{section}] section")
+    if dem.particles is not None:
+        raise CaseError(path, "dem.particles", "present",
+                        "a footing case builds its grains from [specimen]; remove [dem.particles]")
+    if dem.walls:
+        raise CaseError(path, "dem.walls", len(dem.walls),
+                        "a footing case builds its walls and footing itself; remove [[dem.walls]]")
+    _check_materials(path, dem, [("footing.material", ft.material), ("footing.sand_material", ft.sand_material),
+                                 ("footing.side_wall_material", ft.side_wall_material),
+                                 ("zone.interface_material", zone.interface_material)])
+    if zone.width >= soil.width:
+        raise CaseError(path, "zone.width", zone.width, f"must be smaller than soil.width = {soil.width} m "
+                                                        "(the FE soil surrounds the zone)")
+    if zone.depth >= soil.depth:
+        raise CaseError(path, "zone.depth", zone.depth, f"must be smaller than soil.depth = {soil.depth} m "
+                                                        "(the FE soil lies under the zone)")
+    if ft.width >= zone.width:
+        raise CaseError(path, "footing.width", ft.width, f"the footing must be narrower than the DEM zone "
+                                                         f"(zone.width = {zone.width} m), which it loads")
+    if soil.interface_mesh_size > soil.mesh_size:
+        raise CaseError(path, "soil.interface_mesh_size", soil.interface_mesh_size,
+                        f"must not exceed soil.mesh_size = {soil.mesh_size} m (the mesh is refined towards the zone)")
+    if ft.settlement * ft.width >= zone.depth:
+        raise CaseError(path, "footing.settlement", ft.settlement,
+                        f"a settlement of {ft.settlement * ft.width} m reaches the zone's bottom "
+                        f"(zone.depth = {zone.depth} m)")
+    if sp.source == "file":
+        _check_packing_file(path, "specimen.file", sp.file)
+        return  # the packing is checked against the zone (or block) when read
+    d_max = _largest_grain(path, sp)
+    for key, size in (("zone.width", zone.width), ("zone.depth", zone.depth), ("soil.thickness", soil.thickness)):
+        if size < GRAINS_ACROSS * d_max * (1 - 1e-9):
+            raise CaseError(path, key, size, f"the DEM zone must be at least {GRAINS_ACROSS} of the largest grains "
+                                             f"({d_max * 1e3:.2f} mm after scaling) across: >= "
+                                             f"{GRAINS_ACROSS * d_max:.4g} m; or set specimen.truncate_above")

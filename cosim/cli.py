@@ -1,4 +1,4 @@
-"""The ``cosim`` command line: ``run``, ``check``, ``series``, ``info``, ``schema``.
+"""The ``cosim`` command line: ``run``, ``check``, ``series``, ``elastic``, ``info``, ``schema``.
 
 Exit codes: 0 success, 2 bad input (case file, key, value named), 1 runtime failure.
 Under ``mpirun -n N`` every rank runs, only rank 0 prints. Validation runs on every
@@ -51,6 +51,19 @@ def _parser():
     series.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override one value in every case; repeatable")
 
+    elastic = sub.add_parser("elastic", help="small-strain E and nu of a case's packing, for the FE soil",
+                             description="Generate a cube of the grains of CASE (a direct_shear or footing case: "
+                                         "[dem] materials, [specimen] generation), compress it isotropically to "
+                                         "--stress without gravity, apply a small constrained axial strain and "
+                                         "report M, lambda, G, K, E and nu (cosim/lab/elastic.py).")
+    elastic.add_argument("case", metavar="CASE.toml")
+    elastic.add_argument("--stress", type=float, required=True, metavar="PA", help="mean stress p [Pa]")
+    elastic.add_argument("--strain", type=float, default=2e-5, help="axial probe strain (default 2e-5)")
+    elastic.add_argument("--size", type=float, default=None, metavar="M",
+                         help="cube side [m] (default 10 of the largest grains)")
+    elastic.add_argument("--out", metavar="DIR", help="output folder (default runs/out/<case.name>/elastic)")
+    elastic.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
+
     sub.add_parser("info", help="versions of the stack, MPI size and Numba threads",
                    description="Print versions of DOLFINx, Numba, mpi4py, petsc4py, gmsh, meshio, the MPI size "
                                "and Numba threads.")
@@ -72,6 +85,8 @@ def main(argv=None):
         if args.command == "series":
             jobs = _guarded(comm, lambda: _agreed(comm, lambda: _series_jobs(args)), passes=CaseError)
             return _guarded(comm, lambda: _series(jobs, Path(args.out)))
+        if args.command == "elastic":
+            return _elastic(args)
         app, prepared = _guarded(comm, lambda: _agreed(comm, lambda: _prepare(args)), passes=CaseError)
         if args.command == "check":
             say(f"{args.case}: OK (kind '{prepared.case.case.kind}', name '{prepared.case.case.name}'; "
@@ -168,6 +183,28 @@ def _guarded(comm, work, passes=RunFailed):
         sys.stderr.write(f"cosim: ending all {comm.size} ranks (MPI_Abort)\n")
         sys.stderr.flush()
         comm.Abort(code)
+
+
+def _elastic(args):
+    """``cosim elastic``: one process (the cube is small); the arguments checked first."""
+    from cosim.case import load_case
+    from cosim.lab.elastic import measure, roles
+    from cosim.outputs import check_output_folder, mpi_comm
+    if mpi_comm().size > 1:
+        raise CaseError("<command line>", "mpirun", mpi_comm().size, "cosim elastic runs on one process")
+    case, _ = load_case(args.case, args.overrides)
+    roles(case, args.case)
+    for key, value, ok in (("--stress", args.stress, math.isfinite(args.stress) and args.stress > 0),
+                           ("--strain", args.strain, math.isfinite(args.strain) and 0 < args.strain <= 1e-3),
+                           ("--size", args.size, args.size is None or (math.isfinite(args.size) and args.size > 0))):
+        if not ok:
+            allowed = {"--stress": "a mean stress > 0 Pa", "--strain": "a small strain in (0, 1e-3]",
+                       "--size": "a cube side > 0 m"}[key]
+            raise CaseError("<command line>", key, value, allowed)
+    out_dir = Path(args.out) if args.out else DEFAULT_OUT_ROOT / case.case.name / "elastic"
+    check_output_folder(out_dir)
+    measure(case, args.case, args.stress, args.strain, out_dir, args.size)
+    return 0
 
 
 def _info():

@@ -49,11 +49,14 @@ def read_specimen(path):
     return pos, radii, height, e
 
 
-def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None):
+def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None, release_stress=None,
+                  layers=None):
     """Generate the specimen of ``case.specimen`` in ``box`` (or read it from ``cache`` if that
     file exists); returns (positions, radii, height, info dict). Writes ``specimen.npz`` in
     ``out_dir`` (and ``cache``). With ``comm``, collective: the generation's DEM is spread over
-    the ranks, rank 0 writes."""
+    the ranks, rank 0 writes. ``release_stress`` (Pa): at the end, the plate is raised until it
+    carries at most this (GenerationSettings.release_stress), for a specimen that will lose it.
+    ``layers``: the number of layers (under-compaction), instead of ``specimen.layers``."""
     from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
     from de_domain.packing import save_packing
     sp = case.specimen
@@ -78,9 +81,9 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
         local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
         contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
         plate_stress_limit=sp.plate_stress_limit, friction_reduction=sp.friction_reduction,
-        hold_friction=sp.hold_friction, layers=sp.layers,
+        hold_friction=sp.hold_friction, layers=layers or sp.layers,
         undercompaction=sp.undercompaction, cloud_solid_fraction=sp.cloud_solid_fraction,
-        max_steps_per_layer=sp.max_steps_per_layer,
+        max_steps_per_layer=sp.max_steps_per_layer, release_stress=release_stress,
         seed=case.case.seed)
     t0 = time.perf_counter()
     specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm)

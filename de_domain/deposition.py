@@ -181,6 +181,7 @@ class GenerationSettings:
     seed: int = 0
     check_every: int = 50
     box_width: float | None = None    # L_y, along y; None = box_length (a square box)
+    release_stress: float | None = None  # raise the plate at the end until it carries at most this (Pa)
 
     @property
     def sides(self):
@@ -350,6 +351,37 @@ def _seat_plate(engine, s, log, label, max_steps):
     return engine, steps
 
 
+RELEASE_ROUNDS = 10
+
+
+def _release_plate(engine, s, log, max_steps):
+    """With ``s.release_stress`` set: raise the plate slowly until it carries at most that
+    stress, let the specimen come to rest under it, and repeat while it swells back above that
+    (at most RELEASE_ROUNDS times): the compaction stress locked in by
+    the last layer is released, and the specimen can lose its plate (a free surface) without
+    flinging its top grains. Returns (engine, steps)."""
+    if s.release_stress is None:
+        return engine, 0
+    steps = 0
+    plate = engine.walls[5]
+    for _ in range(RELEASE_ROUNDS):  # the specimen swells again while it relaxes: raise, relax, repeat
+        if _plate_stress(engine, s) <= s.release_stress:
+            break
+        plate.velocity = np.array([0.0, 0.0, 0.1 * s.plate_velocity])
+        while steps < max_steps and _plate_stress(engine, s) > s.release_stress:
+            engine.run(s.check_every // 5 or 1)
+            steps += s.check_every // 5 or 1
+        plate.velocity = np.zeros(3)
+        while steps < max_steps:
+            engine.run(s.check_every)
+            steps += s.check_every
+            if _unbalanced(engine) < s.unbalanced_force:
+                break
+    _say(log, f"final: plate raised to {engine.walls[5].point[2] * 1e3:.3f} mm, where it carries "
+              f"{_plate_stress(engine, s):.3g} Pa (release to <= {s.release_stress:.3g} Pa)")
+    return engine, steps
+
+
 # --------------------------------------------------------------------------- methods
 def under_compaction(diameters, s: GenerationSettings, log=None, comm=None):
     """Multi-layer under-compaction (module docstring). ``diameters``: all grains of the
@@ -405,6 +437,8 @@ def under_compaction(diameters, s: GenerationSettings, log=None, comm=None):
         pos, radii = grains.pos.copy(), grains.radius.copy()
     engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
     steps += n
+    engine, n = _release_plate(engine, s, log, s.max_steps_per_layer)
+    steps += n
     return _specimen(engine, s, "under_compaction", steps, stages)
 
 
@@ -455,6 +489,8 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
                   f"unbalanced force {_unbalanced(engine):.3g}, {n} steps")
         pos, vel, angvel = _motion(engine)
     engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
+    steps += n
+    engine, n = _release_plate(engine, s, log, s.max_steps_per_layer)
     steps += n
     return _specimen(engine, s, "radius_expansion", steps, stages)
 

@@ -13,6 +13,7 @@ Pair mixing rules (documented choices, YADE-like):
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass
 
@@ -89,8 +90,9 @@ def restitution_of_damping_ratio(alpha: float) -> float:
     return math.exp(-alpha / s * math.atanh(2.0 * alpha * s / (2.0 * alpha * alpha - 1.0)))
 
 
+@functools.lru_cache(maxsize=256)
 def damping_ratio(restitution: float) -> float:
-    """Damping ratio α of c_n = 2α√(m* k_n) that gives the restitution e (docs/design.md §2.5, §7.1).
+    """Damping ratio α of c_n = 2α√(m* k_n) that gives the restitution e (docs/design.md §2.5, §8.1).
 
     The starting reference's α = −ln e/√(π² + ln² e) assumes the dashpot may pull at the end of
     the contact; with the binding no-tension rule (f_n ≥ 0) that α gives a larger
@@ -152,6 +154,7 @@ def restitution_of_hertz_damping_ratio(alpha):
             return 0.0
 
 
+@functools.lru_cache(maxsize=256)
 def damping_ratio_hertz(restitution: float) -> float:
     """α giving the restitution e with the Hertz law (bisection on
     :func:`restitution_of_hertz_damping_ratio`)."""

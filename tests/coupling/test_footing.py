@@ -1,0 +1,194 @@
+"""Strip footing on a DEM zone embedded in an FE soil block, and its all-DEM reference, both
+from one case description (cosim/apps/footing.py, docs/design.md §7).
+
+A tiny version of runs/footing_small.toml: a 21 x 12 mm zone (~150 grains of 2-3 mm) in a
+45 x 24 mm block, 9 mm thick, a 7 mm footing pushed 0.7 mm.
+"""
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).parents[2]
+COSIM = Path(sys.executable).parent / "cosim"
+CASE = ROOT / "runs" / "footing_small.toml"
+ENV = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+       "OMPI_MCA_rmaps_base_oversubscribe": "1", "NUMBA_NUM_THREADS": "1"}
+TINY = {"soil.width": 0.045, "soil.depth": 0.024, "soil.thickness": 0.009, "soil.mesh_size": 0.01,
+        "soil.interface_mesh_size": 0.005, "zone.width": 0.021, "zone.depth": 0.012, "footing.width": 0.007,
+        "footing.velocity": 0.05, "footing.rows": 10, "specimen.layers": 2}
+X0, ZB = 0.012, 0.012   # the zone's left side and bottom in the tiny block
+
+
+def overrides(extra=None, generated=True):
+    """--set options of the tiny case (without the generation's keys for a packing file)."""
+    out = []
+    for key, value in {**TINY, **(extra or {})}.items():
+        if generated or not key.startswith("specimen."):
+            out += ["--set", f"{key}={json.dumps(value)}"]
+    return out
+
+
+def cosim(*args, mpi=0, timeout=900):
+    cmd = [str(COSIM), *args]
+    if mpi:
+        cmd = ["mpirun", "-n", str(mpi), "--bind-to", "none", *cmd]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=ENV, cwd=ROOT)
+
+
+def read_series(path):
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """The coupled model, then the all-DEM one, of the tiny case, in one case folder."""
+    out = tmp_path_factory.mktemp("footing") / "tiny"
+    for model in ("coupled", "dem"):
+        res = cosim("run", str(CASE), "--out", str(out), *overrides({"footing.model": model}))
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return out
+
+
+def test_the_coupled_zone_comes_to_rest_with_the_fe_carrying_the_grains_weight(runs):
+    rest = json.loads((runs / "coupled" / "summary.json").read_text())["rest"]
+    assert rest["at_rest"] and rest["unbalanced_force_ratio"] < 1e-3
+    assert abs(rest["interface_force_over_weight"] - 1.0) < 0.01
+
+
+def test_the_loaded_footing_bears_on_the_grains_and_the_interface_carries_it(runs):
+    s = read_series(runs / "coupled" / "series.csv")
+    assert s["settlement_ratio"][-1] == pytest.approx(0.1, rel=0.02)
+    assert s["bearing_pressure"][-1] > 0 and np.all(s["footing_force_z"] >= 0)
+    rest = json.loads((runs / "coupled" / "summary.json").read_text())["rest"]
+    # statics of the zone at the end: interface force ~ -(grain weight + footing force), within the
+    # unbalanced part of a slowly loaded packing
+    total = -(rest["grain_weight_N"] + s["footing_force_z"][-1])
+    assert s["interface_force_z"][-1] == pytest.approx(total, rel=0.15)
+    for name in ("load_settlement.png", "displacement_section.png", "fields.xdmf", "particles.pvd", "rest.csv"):
+        assert (runs / "coupled" / name).exists(), name
+
+
+def test_no_grain_leaves_the_zone_through_the_interface(runs):
+    with np.load(runs / "coupled" / "final_packing.npz") as data:
+        pos, radii = data["positions"], data["radii"]
+    slack = 0.5 * radii  # elastic overlap with the interface facets is a small fraction of r
+    assert np.all(pos[:, 0] - radii > X0 - slack) and np.all(pos[:, 0] + radii < X0 + 0.021 + slack)
+    assert np.all(pos[:, 2] - radii > ZB - slack)
+    assert np.all((pos[:, 1] - radii > -slack) & (pos[:, 1] + radii < 0.009 + slack))
+
+
+def test_both_models_from_one_case_and_their_comparison(runs):
+    coupled = json.loads((runs / "coupled" / "summary.json").read_text())
+    dem = json.loads((runs / "dem" / "summary.json").read_text())
+    assert coupled["model"] == "coupled" and dem["model"] == "dem"
+    assert dem["grains"] > 3 * coupled["grains"]          # the block is all grains in the reference
+    assert dem["rest"]["at_rest"]
+    lines = (runs / "comparison.csv").read_text().splitlines()
+    assert lines[0].startswith("settlement_ratio") and len([ln for ln in lines if ln[0].isdigit()]) == 3
+    assert (runs / "comparison.png").exists()
+
+
+def test_two_ranks_run_the_same_model(runs, tmp_path):
+    """The coupled tiny case under mpirun -n 2, from the 1-rank run's specimen: at rest with the
+    same balance, and the same load-settlement curve as one rank up to the chaos of a granular
+    packing. The all-DEM model is bit-identical on 2 ranks; the coupled one is not, because the
+    FE partition changes the order of the FE sums (round-off), and a packing under load amplifies
+    any last-bit difference within a few hundred steps: a 1-rank run whose E differs in the
+    15th digit deviates as much. So the 2-rank curve must stay as close to the 1-rank one as that
+    perturbed run does (a factor 3 for the randomness of chaotic deviations)."""
+    specimen = runs / "coupled" / "specimen.npz"
+    case = _file_case(tmp_path, specimen)
+    res = cosim("run", str(case), "--out", str(tmp_path / "two"), *overrides(generated=False), mpi=2)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert res.stdout.count("outputs: ") == 1
+    res = cosim("run", str(case), "--out", str(tmp_path / "perturbed"), *overrides(generated=False),
+                "--set", f"soil.E={2.0e6 * (1 + 1e-15)!r}")
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    one = json.loads((runs / "coupled" / "summary.json").read_text())
+    two = json.loads((tmp_path / "two" / "coupled" / "summary.json").read_text())
+    assert two["ranks"] == 2 and one["ranks"] == 1 and two["grains"] == one["grains"]
+    assert abs(two["rest"]["interface_force_over_weight"] - 1.0) < 0.01
+    q1 = read_series(runs / "coupled" / "series.csv")["bearing_pressure"]
+    q2 = read_series(tmp_path / "two" / "coupled" / "series.csv")["bearing_pressure"]
+    qp = read_series(tmp_path / "perturbed" / "coupled" / "series.csv")["bearing_pressure"]
+    ranks, perturbed = np.mean(np.abs(q2 - q1)) / np.mean(q1), np.mean(np.abs(qp - q1)) / np.mean(q1)
+    print(f"mean |q difference| / mean q: 2 ranks {ranks:.3g}, E perturbed in the 15th digit {perturbed:.3g}")
+    assert 0 < perturbed and ranks < 3 * perturbed
+
+
+def test_the_trench_interface_is_closed_and_the_fe_lies_behind_it():
+    """The interface facets tile the trench's bottom and two sides exactly; their free edges are on
+    the open top or the slice's faces; the FE material is on the far side of every facet; no
+    sliver elements (the FE step is set by the element size)."""
+    from cosim.apps.footing import Geometry, build_soil
+    from cosim.case import load_case
+    case, _ = load_case(CASE, [f"{k}={json.dumps(v)}" for k, v in TINY.items()])
+    g = Geometry.of(case)
+    solid, interface = build_soil(case, g, 0, 1500.0)
+    v, tri = interface.facets.vertices, interface.facets.triangles
+    a, b, c = (v[tri[:, k]] for k in range(3))
+    normal = np.cross(b - a, c - a)
+    area = 0.5 * np.linalg.norm(normal, axis=1)
+    assert area.sum() == pytest.approx((g.zone_width + 2 * g.zone_depth) * g.thickness, rel=1e-12)
+    x1 = g.zone_x0 + g.zone_width
+    on_face = (np.isclose(v[:, 0], g.zone_x0) | np.isclose(v[:, 0], x1) | np.isclose(v[:, 2], g.zone_bottom))
+    assert np.all(on_face)
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    free = unique[count == 1]
+    ends = v[free.ravel()]
+    assert np.all(np.isclose(ends[:, 1], 0) | np.isclose(ends[:, 1], g.thickness) | np.isclose(ends[:, 2], g.depth))
+
+    def in_cavity(p):
+        return (p[:, 0] > g.zone_x0) & (p[:, 0] < x1) & (p[:, 2] > g.zone_bottom)
+
+    centre = (a + b + c) / 3
+    unit = normal / np.linalg.norm(normal, axis=1)[:, None]
+    eps = 1e-4
+    assert np.all(in_cavity(centre + eps * unit) != in_cavity(centre - eps * unit))  # grains one side, FE the other
+    assert solid.h_cells.min() > 0.2 * case.soil.interface_mesh_size  # smallest altitude of a tetrahedron
+
+
+@pytest.mark.parametrize("extra, key", [
+    ({"zone.depth": 0.006}, "zone.depth"),                 # shallower than 3 of the largest grains
+    ({"footing.width": 0.03}, "footing.width"),            # wider than the zone
+    ({"zone.width": 0.05}, "zone.width"),                  # the zone is not inside the block
+    ({"soil.interface_mesh_size": 0.02}, "soil.interface_mesh_size"),
+    ({"footing.settlement": 0.5, "footing.width": 0.02, "zone.depth": 0.009}, "footing.settlement"),
+    ({"specimen.source": "file", "specimen.file": "packings/sand_bed_30mm.npz"}, "specimen.file"),  # does not fit
+])
+def test_bad_footing_input_is_one_message_and_exit_2(extra, key, tmp_path):
+    if "specimen.source" in extra:
+        extra = {**extra, "specimen.file": str(ROOT / "runs" / "packings" / "sand_bed_30mm.npz")}
+        if not Path(extra["specimen.file"]).exists():
+            pytest.skip("the 30 mm bed packing is made by runs/sand_bed_30mm.toml")
+    sets = overrides(extra)
+    if "specimen.source" in extra:  # a file source takes no generation keys
+        res = cosim("check", str(_file_case(tmp_path, extra["specimen.file"])), *overrides(generated=False))
+    else:
+        res = cosim("check", str(CASE), *sets)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert res.stderr.count("cosim: error:") == 1 and key in res.stderr
+
+
+def _file_case(tmp_path, packing):
+    """runs/footing_small.toml with its [specimen] replaced by a packing file."""
+    text = CASE.read_text()
+    head, rest = text.split("[specimen]", 1)
+    tail = rest[rest.index("[footing]"):]
+    path = tmp_path / "file_case.toml"
+    path.write_text(head + f'[specimen]\nsource = "file"\nfile = "{packing}"\n\n' + tail)
+    return path
+
+
+def test_resume_is_refused_with_one_message(tmp_path):
+    res = cosim("run", str(CASE), "--resume", "--out", str(tmp_path / "x"), *overrides())
+    assert res.returncode == 2 and "cannot resume" in res.stderr
