@@ -2,8 +2,11 @@
 DEM zone grows? (issue 15 item 4; docs/design.md §7.4)
 
 Runs the all-DEM reference of ``runs/footing_small.toml`` and its coupled model with DEM zones
-of growing size in the same soil block, each with several seeds (a different packing each: with
-~6 grains under the footing, one packing's curve is far from the mean). Writes, in
+of growing size in the same soil block (and, on the largest zone, with half the FE stiffness
+and with a frictionless interface; and with the zone's grains carved out of the all-DEM
+specimen: what the gap is sensitive to), each with several seeds (a
+different packing each: with ~6 grains under the footing, one packing's curve is far from the
+mean). Writes, in
 ``runs/out/footing_zone_size/`` and ``docs/``: a table of the bearing pressure at s/B = 2, 5,
 10 % (mean over the seeds, with the seeds' spread, and the coupled/all-DEM difference of the
 means), the wall-clock of each, and the mean load-settlement curves with their seed ranges.
@@ -27,20 +30,44 @@ from cosim.apps.footing import SETTLEMENT_LEVELS, bearing_pressure_at, read_seri
 CASE = ROOT / "runs" / "footing_small.toml"
 OUT = ROOT / "runs" / "out" / "footing_zone_size"
 ZONES = [(0.045, 0.020), (0.075, 0.030), (0.105, 0.040)]  # (width, depth) of the DEM zone [m]: 2, 3, 4 layers
+# what the gap to all-DEM is sensitive to, on the largest zone: (label, overrides)
+VARIANTS = [("E/2", ["--set", "soil.E=1.0e6"]),
+            ("frictionless interface", ["--set", "zone.interface_material=\"side_wall\""])]
 GRID = np.linspace(0.0, 0.1, 101)  # s/B of the mean curves
 
 
-def run(label, seed, ranks, model, *overrides):
+def run(label, seed, ranks, model, *overrides, case=CASE):
     """(series, summary) of one run, made unless its summary exists."""
     out = OUT / f"{label}_seed{seed}"
     summary = out / model / "summary.json"
     if not summary.exists():
-        cmd = [sys.executable, "-m", "cosim.cli", "run", str(CASE), "--out", str(out), "--set", f"case.seed={seed}",
+        cmd = [sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out), "--set", f"case.seed={seed}",
                "--set", f"footing.model=\"{model}\"", *overrides]
         if ranks > 1:
             cmd = ["mpirun", "-n", str(ranks), "--bind-to", "none", *cmd]
         subprocess.run(cmd, check=True, cwd=ROOT)
     return read_series(out / model / "series.csv"), json.loads(summary.read_text())
+
+
+def carved_case(seed, width, depth):
+    """A case whose zone holds the grains of the all-DEM specimen of ``seed`` that lie wholly
+    inside the zone (the same grains, with the same generation history, in both models; the
+    grains cut by the zone's faces are left out, and the zone settles into their room at rest)."""
+    from cosim.apps.footing import Geometry
+    from cosim.case import load_case
+    case, _ = load_case(CASE, [f"zone.width={width}", f"zone.depth={depth}"])
+    g = Geometry.of(case)
+    with np.load(OUT / f"all_dem_seed{seed}" / "dem" / "specimen.npz") as data:
+        pos, radii, height = data["positions"], data["radii"], float(data["height"])
+    inside = ((pos[:, 0] - radii >= g.zone_x0) & (pos[:, 0] + radii <= g.zone_x0 + g.zone_width)
+              & (pos[:, 2] - radii >= g.zone_bottom))
+    packing = OUT / f"carved_seed{seed}.npz"
+    np.savez(packing, positions=pos[inside] - [g.zone_x0, 0.0, g.zone_bottom], radii=radii[inside],
+             height=height - g.zone_bottom)
+    head, rest = CASE.read_text().split("[specimen]", 1)
+    path = OUT / f"carved_seed{seed}.toml"
+    path.write_text(head + f'[specimen]\nsource = "file"\nfile = "{packing}"\n\n' + rest[rest.index("[footing]"):])
+    return path
 
 
 def statistics(runs):
@@ -106,6 +133,17 @@ def main():
         runs = [run(label, seed, args.ranks, "coupled", "--set", f"zone.width={width}", "--set", f"zone.depth={depth}")
                 for seed in args.seeds]
         results[f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm"] = statistics(runs)
+    width, depth = ZONES[-1]
+    for name, extra in VARIANTS:
+        label = f"zone_{1e3 * width:.0f}x{1e3 * depth:.0f}mm_{name.replace(' ', '_').replace('/', '_')}"
+        runs = [run(label, seed, args.ranks, "coupled", "--set", f"zone.width={width}", "--set", f"zone.depth={depth}",
+                    *extra) for seed in args.seeds]
+        results[f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm, {name}"] = statistics(runs)
+    runs = [run(f"zone_{1e3 * width:.0f}x{1e3 * depth:.0f}mm_carved", seed, args.ranks, "coupled", "--set",
+                f"zone.width={width}", "--set", f"zone.depth={depth}", case=carved_case(seed, width, depth))
+            for seed in args.seeds]
+    results[f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm, grains carved from the all-DEM's"] = \
+        statistics(runs)
     text = table(results, results["all-DEM"])
     text += (f"\n\nseeds {args.seeds}; q: mean ± half the range over the seeds; (±%): the coupled mean against "
              "the all-DEM mean\n")

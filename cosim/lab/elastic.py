@@ -6,7 +6,8 @@ a box of six rigid walls, without gravity:
 
 1. **Isotropic compression** — the walls are frictionless; the three walls x = L_x, y = L_y, z = L_z move (the three
    others stay) until the three wall stresses are within 1 % of the mean stress p and the
-   unbalanced force ratio is below 1e-3. Each wall moves by the strain
+   unbalanced force ratio is below 1e-4, confirmed by the stresses averaged over
+   ``AVERAGE_STEPS`` steps with the walls held still. Each wall moves by the strain
    Δε = g (σ − p) / M₀ per check (a proportional servo; M₀ = k_n / d is a stiffness
    guess, E of the grain material for the linear law, g = 0.5).
 2. **Probe** — the walls stop; the top wall moves down by the axial strain ε (default
@@ -45,8 +46,7 @@ from cosim.outputs import atomic_write_text, say
 
 SERVO_GAIN = 0.5
 STRESS_TOLERANCE = 0.01
-REST_UNBALANCED_FORCE = 1e-3
-PROBE_UNBALANCED_FORCE = 1e-4  # before each stress reading of the probe
+PROBE_UNBALANCED_FORCE = 1e-4  # at the end of the compression and before each stress reading of the probe
 CHECK_STEPS = 100
 AVERAGE_STEPS = 400
 PROBE_STEPS = 400
@@ -101,15 +101,22 @@ def moving_walls(engine):
 
 
 def compress(engine, p, stiffness_guess, log, max_steps):
-    """Servo the three moving walls to σ = p (isotropic); returns the steps taken."""
+    """Servo the three moving walls to σ = p (isotropic); returns (steps taken, the wall stresses
+    averaged at the end with the walls held still)."""
     from de_domain.diagnostics import unbalanced_force_ratio
     steps = 0
     axes = (0, 1, 2)
     while steps < max_steps:
         sigma = wall_stresses(engine)
         ufr = unbalanced_force_ratio(engine)
-        if np.all(np.abs(sigma - p) < STRESS_TOLERANCE * p) and ufr < REST_UNBALANCED_FORCE:
-            break
+        if np.all(np.abs(sigma - p) < STRESS_TOLERANCE * p) and ufr < PROBE_UNBALANCED_FORCE:
+            for wall in moving_walls(engine):  # confirm on the walls held still, stresses averaged
+                wall.velocity = np.zeros(3)
+            steps += AVERAGE_STEPS
+            held = averaged_stresses(engine)
+            if np.all(np.abs(held - p) < STRESS_TOLERANCE * p):
+                break
+            sigma = wall_stresses(engine)
         lengths = box_lengths(engine)
         for axis, wall in zip(axes, moving_walls(engine), strict=True):
             strain = SERVO_GAIN * (sigma[axis] - p) / stiffness_guess  # > 0: expand
@@ -119,9 +126,9 @@ def compress(engine, p, stiffness_guess, log, max_steps):
         steps += CHECK_STEPS
     for wall in moving_walls(engine):
         wall.velocity = np.zeros(3)
-    log(f"isotropic compression: sigma = {np.array2string(wall_stresses(engine), precision=4)} Pa "
-        f"(target {p:.4g} Pa), {steps} steps")
-    return steps
+    held = averaged_stresses(engine) if steps >= max_steps else held
+    log(f"isotropic compression: sigma = {np.array2string(held, precision=4)} Pa (target {p:.4g} Pa), {steps} steps")
+    return steps, held
 
 
 def probe(engine, strain, log):
@@ -188,12 +195,13 @@ def measure(case, case_path, mean_stress, strain, out_dir, size=None):
                     gravity=(0.0, 0.0, 0.0), safety_factor=case.time.safety_factor,
                     local_damping=case.specimen.local_damping)
     stiffness_guess = mats[sand].young  # M0 = k_n / d of a pair of equal grains (linear law k_n = 2 E r)
-    steps = compress(engine, mean_stress, stiffness_guess, log, max_steps=2_000_000)
+    steps, compressed = compress(engine, mean_stress, stiffness_guess, log, max_steps=2_000_000)
     before, loaded, unloaded = probe(engine, strain, log)
     lengths = box_lengths(engine)
     solid = float(np.sum(4.0 / 3.0 * math.pi * radii**3))
     result = {"mean_stress_Pa": mean_stress, "axial_strain": strain, "grains": int(len(radii)), "side_m": side,
               "void_ratio": float(np.prod(lengths) / solid - 1.0), "compression_steps": steps,
+              "stress_compressed_Pa": compressed.tolist(),
               "stress_before_Pa": before.tolist(), "stress_loaded_Pa": loaded.tolist(),
               "stress_unloaded_Pa": unloaded.tolist(),
               "recovered_fraction": float((loaded[2] - unloaded[2]) / (loaded[2] - before[2])),
