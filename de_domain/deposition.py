@@ -332,23 +332,31 @@ def _seat_plate(engine, s, log, label, max_steps):
     """Lower the plate slowly until it carries ``seat_stress`` (measures the height of a
     specimen that is denser than its target), then let it come to rest."""
     steps = 0
-    plate = engine.walls[5]
     if _plate_stress(engine, s) >= s.seat_stress:
         return engine, steps
-    v = 0.1 * s.plate_velocity
-    plate.velocity = np.array([0.0, 0.0, -v])
-    while steps < max_steps and _plate_stress(engine, s) < s.seat_stress:
+    steps = _move_plate_then_rest(engine, s, -0.1 * s.plate_velocity,
+                                  lambda: _plate_stress(engine, s) < s.seat_stress, steps, max_steps)
+    _say(log, f"{label}: plate seated at {engine.walls[5].point[2] * 1e3:.3f} mm "
+              f"({_plate_stress(engine, s):.3g} Pa)")
+    return engine, steps
+
+
+def _move_plate_then_rest(engine, s, velocity, moving, steps, max_steps):
+    """Move the plate at ``velocity`` (m/s along z) while ``moving()``, checking every
+    check_every / 5 steps; stop it and run until the unbalanced force ratio is below the
+    threshold. Returns the step count, ``steps`` plus those taken (at most ``max_steps``)."""
+    plate = engine.walls[5]
+    plate.velocity = np.array([0.0, 0.0, velocity])
+    while steps < max_steps and moving():
         engine.run(s.check_every // 5 or 1)
         steps += s.check_every // 5 or 1
-    engine.walls[5].velocity = np.zeros(3)
+    plate.velocity = np.zeros(3)
     while steps < max_steps:
         engine.run(s.check_every)
         steps += s.check_every
         if _unbalanced(engine) < s.unbalanced_force:
             break
-    _say(log, f"{label}: plate seated at {engine.walls[5].point[2] * 1e3:.3f} mm "
-              f"({_plate_stress(engine, s):.3g} Pa)")
-    return engine, steps
+    return steps
 
 
 RELEASE_ROUNDS = 10
@@ -363,20 +371,11 @@ def _release_plate(engine, s, log, max_steps):
     if s.release_stress is None:
         return engine, 0
     steps = 0
-    plate = engine.walls[5]
     for _ in range(RELEASE_ROUNDS):  # the specimen swells again while it relaxes: raise, relax, repeat
         if _plate_stress(engine, s) <= s.release_stress:
             break
-        plate.velocity = np.array([0.0, 0.0, 0.1 * s.plate_velocity])
-        while steps < max_steps and _plate_stress(engine, s) > s.release_stress:
-            engine.run(s.check_every // 5 or 1)
-            steps += s.check_every // 5 or 1
-        plate.velocity = np.zeros(3)
-        while steps < max_steps:
-            engine.run(s.check_every)
-            steps += s.check_every
-            if _unbalanced(engine) < s.unbalanced_force:
-                break
+        steps = _move_plate_then_rest(engine, s, 0.1 * s.plate_velocity,
+                                      lambda: _plate_stress(engine, s) > s.release_stress, steps, max_steps)
     _say(log, f"final: plate raised to {engine.walls[5].point[2] * 1e3:.3f} mm, where it carries "
               f"{_plate_stress(engine, s):.3g} Pa (release to <= {s.release_stress:.3g} Pa)")
     return engine, steps
