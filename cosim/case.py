@@ -219,9 +219,18 @@ class DirectShearSection(_Section):
     ramp_distance: float = Field(
         default=2e-4, ge=0,
         description="the shear velocity ramps up linearly over this displacement [m]")
+    servo: Literal["stiffness", "fixed_gain"] = Field(
+        default="stiffness",
+        description="servo law of the top plate: 'stiffness' (removes servo_gain of the stress error per update, "
+                    "scaled by the plate's contact stiffness, PFC-style, with integral action) or 'fixed_gain' "
+                    "(v = servo_fixed_gain x the relative stress error, as the thesis's YADE script)")
     servo_gain: float = Field(
         default=0.3, gt=0, le=1,
         description="fraction of the stress error the servo removes per update (PFC-style gain) [-]")
+    servo_fixed_gain: Optional[float] = Field(
+        default=None, gt=0,
+        description="servo = 'fixed_gain': plate speed per unit relative stress error, |v| <= servo_max_velocity "
+                    "[m/s]; default servo_max_velocity (YADE script: normalVEL)")
     servo_integral: float = Field(
         default=0.01, ge=0, le=0.2,
         description="integral action: per update the integral velocity grows by this x the proportional one [-]")
@@ -587,6 +596,10 @@ _UNUSED = [
     ("specimen", ("layers", "undercompaction", "friction_reduction", "hold_friction"),
      lambda c, s: s.source == "generate" and s.method == "radius_expansion",
      "method = 'radius_expansion' grows the radii of one cloud in the closed box: no layers, no compaction plate"),
+    ("direct_shear", ("servo_fixed_gain",), lambda c, s: s.servo == "stiffness",
+     "servo = 'stiffness' scales its speed by the plate's contact stiffness; set servo_gain"),
+    ("direct_shear", ("servo_gain", "servo_integral"), lambda c, s: s.servo == "fixed_gain",
+     "servo = 'fixed_gain' is v = servo_fixed_gain x the relative stress error, without integral action"),
     ("direct_shear", ("sample_height",), lambda c, s: c.specimen is not None and c.specimen.source == "file",
      "with specimen.source = 'file' the height is the packing's (the stored plate height of a .npz "
      "written by this app, else the top of the highest grain)"),

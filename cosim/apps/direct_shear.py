@@ -33,7 +33,15 @@ Measured quantities (``series.csv``):
     spheres at the sample centre (radii 0.45 h and 0.20 h; exact lens volumes);
   * Love–Weber stress (compression +) of a slab of thickness b around the split plane
     over the overlap x ∈ [δ, L]: its σ_zz and σ_xz compare with σ_n and τ;
-  * unbalanced force ratio and coordination number.
+  * unbalanced force ratio and coordination number;
+  * ``plate_shear_force``: the top plate's own share of F_x (N), which τ counts (codes that
+    leave the plate out compare with τ − this / A_c), and ``plate_contact_stiffness``: Σ k_n
+    of the plate's contacts (N/m), which the stiffness servo divides by.
+
+Servo laws (``direct_shear.servo``): ``stiffness`` (above; default) or ``fixed_gain``, the
+thesis's YADE script's v = gain (σ − σ_n)/σ_n with |v| ≤ ``servo_max_velocity``
+(``cosim.lab.shear_box.fixed_gain_velocity``). The summary names the law, the gain used and
+the mean plate contact stiffness.
 """
 from __future__ import annotations
 
@@ -61,10 +69,12 @@ from cosim.specimen import make_specimen as generated_specimen
 
 CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
+SUMS = ("shear_stress", "normal_stress", "shear_stress_lower", "plate_shear_force", "plate_contact_stiffness")
+# averaged over the servo updates of a CSV row
 COLUMNS = ["time", "shear_displacement", "shear_stress", "normal_stress", "vertical_displacement",
            "void_ratio", "void_ratio_sphere_045h", "void_ratio_sphere_020h", "shear_stress_lower",
            "lw_normal_stress", "lw_shear_stress", "unbalanced_force_ratio", "coordination_number",
-           "shear_velocity", "step"]
+           "shear_velocity", "step", "plate_shear_force", "plate_contact_stiffness"]
 
 
 # --------------------------------------------------------------------------- inputs
@@ -210,6 +220,10 @@ class ShearTest:
         """τ from the moving half: the grains push it back (−x), hence the sign."""
         return -float(self.upper.force[0] + self.plate.force[0]) / self.area()
 
+    def plate_shear_force(self):
+        """The top plate's own share of the shear force (N): the grains drag it back (−x)."""
+        return -float(self.plate.force[0])
+
     def shear_stress_lower(self):
         return float(self.lower.force[0] + self.bottom.force[0]) / self.area()
 
@@ -241,17 +255,21 @@ class ShearTest:
     def step(self, target):
         """``servo_interval`` DEM steps with the plate velocity from the servo law (σ of
         the last step); the contact stiffness of the plate is refreshed every ≥ 25 steps."""
-        from cosim.lab.shear_box import servo_velocity
+        from cosim.lab.shear_box import fixed_gain_velocity, servo_velocity
         ds = self.ds
         if self.stiffness_step is None or self.engine.step_count - self.stiffness_step >= 25:
             self.update_stiffness()
             self.stiffness_step = self.engine.step_count
-        vz = servo_velocity(self.normal_stress(), target, self.area(), self.stiffness,
-                            self.engine.dt * ds.servo_interval, ds.servo_gain, ds.servo_max_velocity)
-        if self.stiffness > 0.0:  # integral action: no steady lag while the specimen dilates or contracts
-            self.v_integral = float(np.clip(self.v_integral + ds.servo_integral * vz,
-                                            -ds.servo_max_velocity, ds.servo_max_velocity))
-        vz = float(np.clip(vz + self.v_integral, -ds.servo_max_velocity, ds.servo_max_velocity))
+        if ds.servo == "fixed_gain":
+            vz = fixed_gain_velocity(self.normal_stress(), target, ds.servo_fixed_gain or ds.servo_max_velocity,
+                                     ds.servo_max_velocity)
+        else:
+            vz = servo_velocity(self.normal_stress(), target, self.area(), self.stiffness,
+                                self.engine.dt * ds.servo_interval, ds.servo_gain, ds.servo_max_velocity)
+            if self.stiffness > 0.0:  # integral action: no steady lag while the specimen dilates or contracts
+                self.v_integral = float(np.clip(self.v_integral + ds.servo_integral * vz,
+                                                -ds.servo_max_velocity, ds.servo_max_velocity))
+            vz = float(np.clip(vz + self.v_integral, -ds.servo_max_velocity, ds.servo_max_velocity))
         self.plate.velocity = np.array([self.shear_velocity, 0.0, vz])
         self.upper.velocity = np.array([self.shear_velocity, 0.0, 0.0])
         from cosim.apps.dem import advance
@@ -288,7 +306,8 @@ def _record(test, sums, n, z0):
     lw_zz, lw_xz = test.love_weber_slab()
     return [test.engine.time, test.displacement, sums[0] / n, sums[1] / n, float(test.plate.point[2]) - z0,
             test.void_ratio(), e1, e2, sums[2] / n, lw_zz, lw_xz, unbalanced_force_ratio(test.engine),
-            coordination_number(test.engine), test.shear_velocity, test.engine.step_count]
+            coordination_number(test.engine), test.shear_velocity, test.engine.step_count, sums[3] / n,
+            sums[4] / n]
 
 
 # --------------------------------------------------------------------------- the run
@@ -330,7 +349,7 @@ def _load_checkpoint(case, out_dir, comm=None):
 def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
     """The test on one rank (``comm`` None) or, collectively, on all ranks of ``comm``
     (files written by rank 0)."""
-    from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
+    from cosim.lab.shear_box import corrected_area, inertial_number, velocity_for_inertial_number
     from cosim.lab.shear_report import plot_run, read_series, summarize
     name, ds = case.case.name, case.direct_shear
     log = lambda text: say(f"[{name}] {text}")  # noqa: E731
@@ -357,7 +376,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
         consolidation_steps = test.consolidate(log)
         loop = {"specimen_info": specimen_info, "consolidation_steps": consolidation_steps,
                 "e_consolidated": test.void_ratio(), "z0": float(test.plate.point[2]), "next_row": 0.0,
-                "sums": [0.0, 0.0, 0.0], "n": 0, "servo_errors": [], "next_frame": 0.0,
+                "sums": [0.0] * len(SUMS), "n": 0, "servo_errors": [], "next_frame": 0.0,
                 "wall_clock_consolidation_s": time.perf_counter() - t_consolidation, "wall_clock_shear_s": 0.0,
                 "wall_clock_before_s": 0.0}
     height, z0 = test.height0, loop["z0"]
@@ -379,7 +398,8 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
     progress = ProgressLine(name, total_steps, case.output.progress_interval, first_step=engine.step_count)
     row_spacing = ds.shear_distance / ds.rows
     next_row, n, servo_errors = loop["next_row"], loop["n"], loop["servo_errors"]
-    sums = np.array(loop["sums"])
+    sums = np.zeros(len(SUMS))
+    sums[:len(loop["sums"])] = loop["sums"]  # (a checkpoint of an older version kept fewer)
     t0 = time.perf_counter()
     last_checkpoint = t0
     while True:
@@ -387,7 +407,8 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
         ramp = min(1.0, max(0.02, delta / ds.ramp_distance)) if ds.ramp_distance > 0 else 1.0
         test.shear_velocity = v * ramp
         test.step(ds.normal_stress)
-        sums += (test.shear_stress(), test.normal_stress(), test.shear_stress_lower())
+        sums += (test.shear_stress(), test.normal_stress(), test.shear_stress_lower(), test.plate_shear_force(),
+                 test.stiffness)
         n += 1
         delta = test.displacement
         if delta >= next_row or delta >= ds.shear_distance:
@@ -396,7 +417,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
                 series.append(row)
             if delta > ds.ramp_distance:
                 servo_errors.append(abs(row[3] - ds.normal_stress) / ds.normal_stress)
-            sums, n = np.zeros(3), 0
+            sums, n = np.zeros(len(SUMS)), 0
             next_row += row_spacing
             frames(engine, delta)
         progress.update(engine.step_count, engine.time)
@@ -432,6 +453,17 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
         "void_ratio_sphere_020h_end": float(data["void_ratio_sphere_020h"][-1]),
         "servo_max_relative_error": float(max(servo_errors)) if servo_errors else None,
         "servo_mean_relative_error": float(np.mean(servo_errors)) if servo_errors else None,
+        "servo": ds.servo,
+        "servo_gain": ds.servo_gain if ds.servo == "stiffness" else ds.servo_fixed_gain or ds.servo_max_velocity,
+        "servo_gain_unit": "fraction of the stress error per update" if ds.servo == "stiffness"
+                           else "m/s per unit relative stress error",
+        "plate_contact_stiffness_mean": float(np.mean(data["plate_contact_stiffness"][after])),
+        "servo_fixed_gain_stable_below": float(2.0 * ds.normal_stress * np.mean(corrected_area(
+            ds.box_length, data["shear_displacement"][after])) / (np.mean(data["plate_contact_stiffness"][after])
+                                                                 * engine.dt * ds.servo_interval)),
+        "plate_shear_force_over_total": float(np.mean(data["plate_shear_force"][after])
+                                              / np.mean(data["shear_stress"][after] * corrected_area(
+                                                  ds.box_length, data["shear_displacement"][after]))),
         "love_weber_normal_over_wall": lw_ratio(data["lw_normal_stress"], data["normal_stress"]),
         "love_weber_shear_over_wall": lw_ratio(np.abs(data["lw_shear_stress"]), data["shear_stress"]),
         "shear_lower_over_upper": lw_ratio(data["shear_stress_lower"], data["shear_stress"]),
@@ -465,6 +497,9 @@ def summary_text(s):
         f"servo |sigma - sigma_n|/sigma_n: max {servo if servo is not None else float('nan'):.4f} over the CSV rows; "
         f"Love-Weber/wall: normal {s['love_weber_normal_over_wall']:.3f}, shear {s['love_weber_shear_over_wall']:.3f}; "
         f"lower/upper shear force {s['shear_lower_over_upper']:.3f}",
+        f"servo law {s['servo']}, gain {s['servo_gain']:.3g} ({s['servo_gain_unit']}); plate contact stiffness "
+        f"{s['plate_contact_stiffness_mean']:.4g} N/m (mean); the top plate carries "
+        f"{100 * s['plate_shear_force_over_total']:.1f} % of the shear force",
         f"wall clock: specimen {s.get('generation_wall_clock_s', 0.0):.0f} s, consolidation "
         f"{s.get('wall_clock_consolidation_s', 0.0):.0f} s, shear {s['wall_clock_shear_s']:.0f} s, total "
         f"{s['wall_clock_total_s']:.0f} s (a resumed run counts every process up to its last checkpoint)",

@@ -106,6 +106,15 @@ def servo_velocity(stress, target, area, stiffness, dt, gain, max_velocity):
     return float(np.clip(v, -max_velocity, max_velocity))
 
 
+def fixed_gain_velocity(stress, target, gain, max_velocity):
+    """Vertical velocity of a top plate (normal −z) proportional to the relative stress error,
+    as the servo of the thesis's YADE script (App. D, ``servoController``):
+
+        v_z = −gain · (σ_target − σ) / σ_target,  |v_z| ≤ v_max  (positive: up).
+    """
+    return float(np.clip(-gain * (target - stress) / target, -max_velocity, max_velocity))
+
+
 def plate_contact_stiffness(particles, radius, young_grain, young_plate):
     """Σ k_n of the plate's contacts with ``particles`` (linear law, docs/design.md §2.3:
     per-body springs k = 4 E r in series, the wall a mirror sphere of radius r)."""

@@ -29,6 +29,8 @@ def test_shipped_case_files_are_valid(name):
     ("specimen.sieve='gravel'", "specimen.sieve"),                           # unknown preset
     ("direct_shear.sample_height=0.01", "specimen.truncate_above"),          # grains too large for the box
     ("specimen.method='pluviation'", "specimen.method"),
+    ("direct_shear.servo_fixed_gain=0.001", "direct_shear.servo_fixed_gain"),  # the stiffness servo has no such gain
+    ("direct_shear.servo='pid'", "direct_shear.servo"),
     ("specimen.void_ratio=2.0", "specimen.void_ratio"),
 ])
 def test_bad_values_are_named(override, key):

@@ -135,3 +135,43 @@ def test_small_case_dense_dilates_loose_contracts(tmp_path, case_file, sign):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["void_ratio_within_tolerance"]
     assert sign * summary["vertical_displacement_end"] > 0
+
+
+def test_the_plate_shear_force_and_the_servo_used_are_reported(dense):
+    """The top plate's own share of the shear force is a CSV column: τ counts it, it is part of
+    the moving half's force, so between 0 and that force; the summary names the servo law, its
+    gain and the plate's contact stiffness."""
+    summary, series, _ = dense
+    after = series["shear_displacement"] > 1e-4
+    total = series["shear_stress"][after] * 0.02 * (0.02 - series["shear_displacement"][after])
+    share = np.mean(series["plate_shear_force"][after]) / np.mean(total)
+    assert 0.0 < share < 1.0
+    assert summary["plate_shear_force_over_total"] == pytest.approx(share, rel=1e-9)
+    assert summary["servo"] == "stiffness" and summary["servo_gain"] == 0.3
+    assert summary["plate_contact_stiffness_mean"] > 0 and np.all(series["plate_contact_stiffness"][after] > 0)
+
+
+def test_the_fixed_gain_servo_of_the_yade_script_lags_as_its_law_says(tmp_path):
+    """servo = 'fixed_gain': v = g (σ − σ_n)/σ_n (thesis App. D). Below its stability bound
+    g < 2 σ_n A_c / (k Δt_servo) the plate follows the specimen's volume change with the
+    proportional law's lag: σ/σ_n − 1 = (dz/dt)/g, on average over the shear."""
+    gain = 2e-3  # m/s; the bound here is ~3e-3 (k ~ 7e6 N/m, A_c ~ 4e-4 m², Δt_servo ~ 4e-6 s)
+    case = tmp_path / "mini_fixed.toml"
+    case.write_text(MINI.format(name="mini_fixed", e=0.70, mu=0.05).replace(
+        "[direct_shear]\n", f"[direct_shear]\nservo = \"fixed_gain\"\nservo_fixed_gain = {gain}\n"))
+    assert main(["run", str(case), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    series = read_series(tmp_path / "out" / "series.csv")
+    assert summary["servo"] == "fixed_gain" and summary["servo_gain"] == gain
+    assert gain < summary["servo_fixed_gain_stable_below"]
+    after = series["shear_displacement"] > 1e-4
+    t, z, sigma = series["time"][after], series["vertical_displacement"][after], series["normal_stress"][after]
+    lag = (z[-1] - z[0]) / (t[-1] - t[0]) / gain
+    print(f"mean sigma/sigma_n - 1 = {np.mean(sigma / 100e3 - 1):.4f}, (dz/dt)/g = {lag:.4f}")
+    assert np.mean(sigma / 100e3 - 1) == pytest.approx(lag, abs=0.2 * abs(lag) + 0.005)
+
+
+def test_fixed_gain_velocity_is_the_yade_law():
+    from cosim.lab.shear_box import fixed_gain_velocity
+    assert fixed_gain_velocity(90e3, 100e3, 0.05, 1.0) == pytest.approx(-0.005)   # too low: plate moves down
+    assert fixed_gain_velocity(300e3, 100e3, 0.05, 0.06) == pytest.approx(0.06)   # clipped at v_max
