@@ -19,7 +19,7 @@ from cosim.cli import main
 
 RUNS = Path(__file__).parents[2] / "runs"
 BASES = {"dem": "demo_dem_settling.toml", "fe": "fe_footing.toml", "shear": "direct_shear_small.toml",
-         "coupled": "coupled_footing_on_sand.toml"}
+         "coupled": "coupled_footing_on_sand.toml", "footing": "footing_small.toml"}
 
 
 @dataclass
@@ -264,6 +264,22 @@ CORPUS = [
     Bad("coupled", "file not found", sets=['dem.particles.file="missing.npz"']),
     Bad("coupled", "does not use [specimen]", sets=["specimen.scale=2.0"]),
     Bad("coupled", "fe.materials[0].E", sets=["fe.materials[0].E=nan"]),
+    # ---------------------------------------------------------------- footing (docs/design.md §7)
+    Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),
+    Bad("footing", "at least 3 of the largest grains", sets=["soil.thickness=0.004"],
+        label="slice thinner than 3 grains"),
+    Bad("footing", "narrower than the DEM zone", sets=["footing.width=0.08"], label="footing wider than the zone"),
+    Bad("footing", "zone.width", sets=["zone.width=0.2"], label="zone wider than the block"),
+    Bad("footing", "reaches the zone's bottom", sets=["footing.settlement=0.5", "footing.width=0.07"]),
+    Bad("footing", "not used here", sets=["time.dt=1e-6"], label="time.dt in a footing case"),
+    Bad("footing", "lasts until footing.settlement", sets=["time.duration=0.1"]),
+    Bad("footing", "remove [dem.particles]", append='\n[dem.particles]\nsource = "file"\nfile = "x.npz"\n'
+        'material = "sand"\n'),
+    Bad("footing", "footing.model", sets=['footing.model="fem"']),
+    Bad("footing", "soil.E", sets=["soil.E=-1.0"]),
+    Bad("footing", "does not fit the DEM zone", cut="[specimen]",
+        append='\n[specimen]\nsource = "file"\nfile = "packings/sand_bed_30mm.npz"\n',
+        label="a packing that does not fit the zone"),
 ]
 
 
