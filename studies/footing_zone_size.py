@@ -25,7 +25,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from cosim.apps.footing import SETTLEMENT_LEVELS, bearing_pressure_at, read_series  # noqa: E402
+from cosim.apps.footing import SETTLEMENT_LEVELS, bearing_pressure_at  # noqa: E402
+from cosim.lab.shear_report import read_series  # noqa: E402
 
 CASE = ROOT / "runs" / "footing_small.toml"
 OUT = ROOT / "runs" / "out" / "footing_zone_size"

@@ -69,8 +69,8 @@ from cosim.specimen import make_specimen as generated_specimen
 
 CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
-SUMS = ("shear_stress", "normal_stress", "shear_stress_lower", "plate_shear_force", "plate_contact_stiffness")
 # averaged over the servo updates of a CSV row
+SUMS = ("shear_stress", "normal_stress", "shear_stress_lower", "plate_shear_force", "plate_contact_stiffness")
 COLUMNS = ["time", "shear_displacement", "shear_stress", "normal_stress", "vertical_displacement",
            "void_ratio", "void_ratio_sphere_045h", "void_ratio_sphere_020h", "shear_stress_lower",
            "lw_normal_stress", "lw_shear_stress", "unbalanced_force_ratio", "coordination_number",

@@ -374,7 +374,6 @@ def come_to_rest(case, model, out_dir, name):
     weight = model.grain_weight()
     rows = CsvSeries(out_dir / "rest.csv", REST_COLUMNS) if is_root() else None
     start = model.time
-    ufr = _unbalanced(model)
     while True:
         model.advance(REST_CHECK_TIME)
         ufr = _unbalanced(model)
@@ -540,11 +539,6 @@ def plot_displacement_section(case, model, before, after, path):
     plt.close(fig)
 
 
-def read_series(path):
-    data = np.genfromtxt(path, delimiter=",", names=True)
-    return {name: np.atleast_1d(data[name]) for name in data.dtype.names}
-
-
 def compare_models(case_dir, title):
     """When both models' series exist in ``case_dir``: ``comparison.csv`` (q of each at the
     SETTLEMENT_LEVELS, their difference, the wall-clock) and ``comparison.png``."""
@@ -552,6 +546,7 @@ def compare_models(case_dir, title):
     summaries = {m: case_dir / m / "summary.json" for m in paths}
     if not all(p.exists() for p in [*paths.values(), *summaries.values()]):
         return None
+    from cosim.lab.shear_report import read_series  # CSV -> dict of arrays
     curves = {m: read_series(p) for m, p in paths.items()}
     info = {m: json.loads(p.read_text()) for m, p in summaries.items()}
     q = {m: bearing_pressure_at(c) for m, c in curves.items()}

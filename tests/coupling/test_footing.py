@@ -4,7 +4,6 @@ from one case description (cosim/apps/footing.py, docs/design.md §7).
 A tiny version of runs/footing_small.toml: a 21 x 12 mm zone (~150 grains of 2-3 mm) in a
 45 x 24 mm block, 9 mm thick, a 7 mm footing pushed 0.7 mm.
 """
-import csv
 import json
 import os
 import subprocess
@@ -13,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from cosim.lab.shear_report import read_series
 
 ROOT = Path(__file__).parents[2]
 COSIM = Path(sys.executable).parent / "cosim"
@@ -39,12 +40,6 @@ def cosim(*args, mpi=0, timeout=900):
     if mpi:
         cmd = ["mpirun", "-n", str(mpi), "--bind-to", "none", *cmd]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=ENV, cwd=ROOT)
-
-
-def read_series(path):
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
 
 
 @pytest.fixture(scope="module")
