@@ -258,6 +258,11 @@ class DirectShearSection(_Section):
     band_thickness: float = Field(
         default=0.0, ge=0,
         description="thickness of the slab at the split plane for the Love-Weber check [m]; 0 = 2 d50")
+    band_pictures: Optional[list[float]] = Field(
+        default=None, min_length=1, max_length=50,
+        description="shear displacements at which the shear band is drawn (shear_band_<delta>mm.png: the section "
+                    "y = L/2 painted in 10 stripes along x, and coloured by u_x/delta) and its thickness measured "
+                    "[m]; default: shear_distance / 3 and shear_distance")
 
 
 # --------------------------------------------------------------------------- fe
@@ -859,6 +864,10 @@ def _check_direct_shear(path, case):
     if ds.ramp_distance >= ds.shear_distance:
         raise CaseError(path, "direct_shear.ramp_distance", ds.ramp_distance,
                         f"must be smaller than shear_distance = {ds.shear_distance} m")
+    for delta in ds.band_pictures or ():
+        if not 0.0 < delta <= ds.shear_distance:
+            raise CaseError(path, "direct_shear.band_pictures", delta,
+                            f"every shear displacement must lie in (0, shear_distance = {ds.shear_distance} m]")
     if sp.source == "file":
         _check_packing_file(path, "specimen.file", sp.file)
         return

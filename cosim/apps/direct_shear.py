@@ -49,6 +49,7 @@ import json
 import math
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -69,6 +70,7 @@ from cosim.specimen import make_specimen as generated_specimen
 
 CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
+SHEAR_START = "shear_start.npz"  # every grain's position when shearing began (the shear-band pictures)
 # averaged over the servo updates of a CSV row
 SUMS = ("shear_stress", "normal_stress", "shear_stress_lower", "plate_shear_force", "plate_contact_stiffness")
 COLUMNS = ["time", "shear_displacement", "shear_stress", "normal_stress", "vertical_displacement",
@@ -393,6 +395,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
     series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None) \
         if is_root() else None
     frames = _frames(case, out_dir, loop, engine.time if resume else None)
+    band_pictures = _band_pictures(case, out_dir, loop, test, resume)
     if not resume:
         frames(engine, 0)
     progress = ProgressLine(name, total_steps, case.output.progress_interval, first_step=engine.step_count)
@@ -420,6 +423,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
             sums, n = np.zeros(len(SUMS)), 0
             next_row += row_spacing
             frames(engine, delta)
+        band_pictures(delta)  # collective when distributed
         progress.update(engine.step_count, engine.time)
         if delta >= ds.shear_distance:
             break
@@ -469,6 +473,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
         "shear_lower_over_upper": lw_ratio(data["shear_stress_lower"], data["shear_stress"]),
         "wall_clock_consolidation_s": loop["wall_clock_consolidation_s"], "wall_clock_shear_s": shear_wall_clock,
         "wall_clock_total_s": loop["wall_clock_before_s"] + time.perf_counter() - t_start,
+        "shear_band": loop["shear_band"],
         **{k: v for k, v in specimen_info.items() if k != "generation_log"},
     })
     atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
@@ -500,6 +505,9 @@ def summary_text(s):
         f"servo law {s['servo']}, gain {s['servo_gain']:.3g} ({s['servo_gain_unit']}); plate contact stiffness "
         f"{s['plate_contact_stiffness_mean']:.4g} N/m (mean); the top plate carries "
         f"{100 * s['plate_shear_force_over_total']:.1f} % of the shear force",
+        *(f"shear band at delta {b['shear_displacement'] * 1e3:.2f} mm: thickness {b['thickness'] * 1e3:.2f} mm "
+          f"= {b['thickness_d50']:.1f} d50 (10-90 % of u_x/delta), centred at z = {b['centre_height'] * 1e3:.2f} mm"
+          for b in s.get("shear_band", ())),
         f"wall clock: specimen {s.get('generation_wall_clock_s', 0.0):.0f} s, consolidation "
         f"{s.get('wall_clock_consolidation_s', 0.0):.0f} s, shear {s['wall_clock_shear_s']:.0f} s, total "
         f"{s['wall_clock_total_s']:.0f} s (a resumed run counts every process up to its last checkpoint)",
@@ -532,4 +540,44 @@ def _frames(case, out_dir, loop, resume_time=None, count=10):
             if index is not None:
                 index.add(engine.time, paths)
             loop["next_frame"] += spacing
+    return write
+
+
+def _band_pictures(case, out_dir, loop, test, resume):
+    """Shear-band pictures and thicknesses at ``direct_shear.band_pictures``
+    (``cosim.lab.shear_band``). Every grain's position when shearing begins is kept in
+    ``shear_start.npz`` for a resumed run; the number of pictures made so far is in
+    ``loop["next_band_picture"]`` and their records in ``loop["shear_band"]`` (both
+    checkpointed). Returns ``write(delta)``, collective when the engine is distributed."""
+    from cosim.lab.shear_band import band_record, measure_band, plot_section
+    ds = case.direct_shear
+    targets = sorted(ds.band_pictures or (ds.shear_distance / 3.0, ds.shear_distance))
+    path = Path(out_dir) / SHEAR_START
+    if resume:
+        if "next_band_picture" not in loop:  # a checkpoint written before the pictures existed: none made
+            loop.update(next_band_picture=len(targets), shear_band=[])
+        start = np.load(path)["position"] if is_root() and loop["next_band_picture"] < len(targets) else None
+    else:
+        start = test.engine.global_particles().pos.copy()  # collective when distributed
+        if is_root():
+            tmp = path.with_name(path.stem + ".tmp.npz")
+            np.savez(tmp, position=start)
+            tmp.replace(path)
+        loop.update(next_band_picture=0, shear_band=[])
+
+    def write(delta):
+        while loop["next_band_picture"] < len(targets) and delta >= targets[loop["next_band_picture"]] - 1e-12:
+            loop["next_band_picture"] += 1
+            now = test.engine.global_particles()  # collective when distributed
+            if not is_root():
+                continue
+            before = SimpleNamespace(pos=start)
+            split = test.geometry.split_height
+            fit, profile = measure_band(before, now, delta, test.L, test.d50, split)
+            loop["shear_band"].append(band_record(fit, delta, test.d50))
+            box = {"box_length": test.L, "split_height": split, "delta": delta,
+                   "plate_height": float(test.plate.point[2])}
+            plot_section(Path(out_dir) / f"shear_band_{delta * 1e3:.1f}mm.png", before, now, box, fit, profile,
+                         f"{case.case.name}: σ_n = {ds.normal_stress / 1e3:.0f} kPa, δ = {delta * 1e3:.2f} mm, "
+                         f"shear band {fit.thickness * 1e3:.1f} mm = {fit.thickness / test.d50:.1f} d50")
     return write

@@ -32,6 +32,8 @@ def test_shipped_case_files_are_valid(name):
     ("direct_shear.servo_fixed_gain=0.001", "direct_shear.servo_fixed_gain"),  # the stiffness servo has no such gain
     ("direct_shear.servo='pid'", "direct_shear.servo"),
     ("specimen.void_ratio=2.0", "specimen.void_ratio"),
+    ("direct_shear.band_pictures=[0.003, 0.012]", "direct_shear.band_pictures"),  # beyond the shear distance
+    ("direct_shear.band_pictures=[]", "direct_shear.band_pictures"),
 ])
 def test_bad_values_are_named(override, key):
     with pytest.raises(CaseError) as err:

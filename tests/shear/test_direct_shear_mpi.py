@@ -4,6 +4,7 @@ the consolidation and the shear run on all ranks; the specimen and the measured 
 bit-identical to the one-rank run at every row."""
 import csv
 import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -54,3 +55,6 @@ def test_two_ranks_shear_the_one_rank_specimen_bit_for_bit(tmp_path):
         # summed over ranks in rank order: the same to round-off
         np.testing.assert_allclose(np.array(two[key], float), np.array(one[key], float), rtol=1e-9, err_msg=key)
     assert len(one["step"]) >= 10 and float(one["shear_stress"][-1]) > 0.0
+    # the shear band from the grains gathered on rank 0: the same numbers
+    bands = [json.loads((tmp_path / run / "summary.json").read_text())["shear_band"] for run in ("one", "two")]
+    assert bands[0] == bands[1] and len(bands[0]) == 2

@@ -60,6 +60,9 @@ def test_killed_shear_run_resumes_to_the_same_result(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "resumed at step" in res.stdout + res.stderr
     assert rows(split / "series.csv") == rows(reference / "series.csv")
+    # the shear band, measured against the positions saved when shearing began
+    reference_summary = json.loads((reference / "summary.json").read_text())
+    assert json.loads((split / "summary.json").read_text())["shear_band"] == reference_summary["shear_band"]
     # the summary of the resumed run counts the killed process's time too
     summary = json.loads((split / "summary.json").read_text())
     assert summary["wall_clock_total_s"] >= summary["wall_clock_shear_s"] + summary["wall_clock_consolidation_s"]

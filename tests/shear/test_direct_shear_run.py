@@ -118,6 +118,25 @@ def test_outputs_of_a_run(dense):
     assert summary["inertial_number"] == pytest.approx(1.5e-3, rel=1e-6)
 
 
+def test_the_shear_band_is_drawn_and_measured(dense):
+    """Default pictures at δ/3 and δ: the PNG shows many colours (ten stripes, a colour
+    map); the band is centred near the split plane and, once formed (at the end), thinner
+    than the specimen (early on, in this box 5 grains tall, it spans all of it)."""
+    from matplotlib.image import imread
+    summary, _, out = dense
+    bands = summary["shear_band"]
+    assert [b["shear_displacement"] for b in bands] == [pytest.approx(0.5e-3, abs=2e-5), pytest.approx(1.5e-3, abs=2e-5)]
+    for b in bands:
+        picture = imread(out / f"shear_band_{b['shear_displacement'] * 1e3:.1f}mm.png")
+        assert len(np.unique(picture.reshape(-1, picture.shape[-1]), axis=0)) > 20
+        assert b["thickness"] > 0.0
+        assert b["thickness_d50"] == pytest.approx(b["thickness"] / summary["d50"])
+        assert abs(b["centre_height"] - 0.5 * summary["sample_height"]) < 0.25 * summary["sample_height"]
+        assert b["displacement_below"] < 0.5 < b["displacement_above"]
+    assert bands[-1]["thickness"] < summary["sample_height"]
+    assert "shear band at delta 1.50 mm" in (out / "summary.txt").read_text()
+
+
 def test_dense_specimen_dilates(dense):
     summary, series, _ = dense
     assert summary["vertical_displacement_end"] > 0
