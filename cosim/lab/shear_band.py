@@ -138,7 +138,7 @@ def plot_section(path, start, now, box, fit, profile, title):
                "stripe painted before shearing (x₀ in L/10)"),
               (axes[1], ux, plt.get_cmap("viridis"), (0.0, 1.0), "horizontal displacement u_x / δ"))
     for ax, values, cmap, limits, label in panels:
-        circles = PatchCollection([Circle(centre, r) for centre, r in zip(zip(x, z), cut)],
+        circles = PatchCollection([Circle((a, b), r) for a, b, r in zip(x, z, cut, strict=True)],
                                   cmap=cmap, linewidths=0)
         circles.set_array(np.asarray(values, float))
         circles.set_clim(*limits)
