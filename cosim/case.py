@@ -164,6 +164,12 @@ class SpecimenSection(_Section):
     cloud_solid_fraction: float = Field(
         default=0.2, gt=0.01, le=0.35,
         description="solid fraction of each generated cloud [-]")
+    deposition_material: Optional[str] = Field(
+        default=None,
+        description="a [[dem.materials]] name: the grains' material while the specimen is made (its density, "
+                    "young, stiffness_ratio, friction, ...; the deposition_* keys below still override its "
+                    "friction and rolling resistance), e.g. the thesis's packing parameters (Table 4.1) "
+                    "against its test parameters (App. D); default: the sand's")
     deposition_friction: Optional[float] = Field(
         default=None, ge=0,
         description="particle friction during generation (lowered automatically when the "
@@ -857,7 +863,8 @@ def _check_direct_shear(path, case):
         raise CaseError(path, "dem.walls", len(dem.walls),
                         "a direct_shear case builds the shear box itself; remove [[dem.walls]]")
     _check_materials(path, dem, [(f"direct_shear.{key}", getattr(ds, key))
-                                 for key in ("sand_material", "side_wall_material", "plate_material")])
+                                 for key in ("sand_material", "side_wall_material", "plate_material")]
+                     + _deposition_material(sp))
     if ds.shear_distance >= ds.box_length:
         raise CaseError(path, "direct_shear.shear_distance", ds.shear_distance,
                         f"must be smaller than box_length = {ds.box_length} m")
@@ -895,6 +902,11 @@ def _check_materials(path, dem, keys):
     for key, name in keys:
         if name not in names:
             raise CaseError(path, key, name, f"must be one of the materials: {names}")
+
+
+def _deposition_material(sp):
+    """The (key, name) of [specimen] deposition_material to check, if given."""
+    return [] if sp.deposition_material is None else [("specimen.deposition_material", sp.deposition_material)]
 
 
 def _largest_grain(path, sp):
@@ -936,7 +948,8 @@ def _check_footing(path, case):
                         "a footing case builds its walls and footing itself; remove [[dem.walls]]")
     _check_materials(path, dem, [("footing.material", ft.material), ("footing.sand_material", ft.sand_material),
                                  ("footing.side_wall_material", ft.side_wall_material),
-                                 ("zone.interface_material", zone.interface_material)])
+                                 ("zone.interface_material", zone.interface_material)]
+                     + _deposition_material(case.specimen))
     if zone.width >= soil.width:
         raise CaseError(path, "zone.width", zone.width, f"must be smaller than soil.width = {soil.width} m "
                                                         "(the FE soil surrounds the zone)")

@@ -72,9 +72,12 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
     say(f"[{name}] generating the specimen ({sp.method}) in {box.length * 1e3:.1f} x {box.width * 1e3:.1f} x "
         f"{box.height * 1e3:.1f} mm: {len(diameters)} grains, "
         f"d = {diameters.min() * 1e3:.2f}-{diameters.max() * 1e3:.2f} mm, target e = {sp.void_ratio}")
+    grain = mats[box.sand]
+    if sp.deposition_material is not None:  # the grains' own material while they are deposited
+        grain = mats[[m.name for m in case.dem.materials].index(sp.deposition_material)]
     settings = GenerationSettings(
         box_length=box.length, box_width=box.width, height=box.height, void_ratio=sp.void_ratio,
-        sand=mats[box.sand], wall=mats[box.side_wall], plate=mats[box.plate],
+        sand=grain, wall=mats[box.side_wall], plate=mats[box.plate],
         friction=sp.deposition_friction, rolling_friction=sp.deposition_rolling_friction,
         rolling_stiffness=sp.deposition_rolling_stiffness, density_scale=sp.density_scale,
         gravity=tuple(case.dem.gravity),
