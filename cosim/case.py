@@ -452,7 +452,7 @@ def load_case(path, overrides=()):
     try:
         case = Case.model_validate(raw)
     except ValidationError as exc:
-        raise _case_error_from_pydantic(path, exc) from None
+        raise schema_error(path, exc) from None
     _check_consistency(path, case)
     return case, case.model_dump()
 
@@ -512,24 +512,27 @@ def _dotted(loc):
     return out
 
 
-def _case_error_from_pydantic(path, exc):
+def schema_error(path, exc, root=None):
+    """The first pydantic error of a file validated against ``root`` (default :class:`Case`)
+    as a CaseError naming the dotted key, the value and what is allowed."""
+    root = root or Case
     err = exc.errors()[0]
     loc = [p for p in err["loc"] if not (isinstance(p, str) and ("[" in p or p.startswith("function-")))]
     key = _dotted(loc)
     msg = err["msg"]
     if err["type"] == "extra_forbidden":
-        parent = _model_at(loc[:-1])
+        parent = _model_at(loc[:-1], root)
         allowed = ", ".join(parent.model_fields) if parent else "see `cosim schema`"
         return CaseError(path, key, err.get("input"), f"unknown key; allowed keys here: {allowed}")
     if err["type"] == "missing":
         return CaseError(path, key, None, "required key is missing")
-    field = _field_at(loc)
+    field = _field_at(loc, root)
     desc = f" ({field.description})" if field is not None and field.description else ""
     return CaseError(path, key, err.get("input"), msg + desc)
 
 
-def _model_at(loc):
-    model = Case
+def _model_at(loc, root):
+    model = root
     for part in loc:
         if isinstance(part, int):
             continue
@@ -542,8 +545,8 @@ def _model_at(loc):
     return model
 
 
-def _field_at(loc):
-    parent = _model_at([p for p in loc[:-1]])
+def _field_at(loc, root):
+    parent = _model_at(loc[:-1], root)
     names = [p for p in loc if isinstance(p, str)]
     if parent is None or not names:
         return None
@@ -975,3 +978,83 @@ def _check_footing(path, case):
             raise CaseError(path, key, size, f"the DEM zone must be at least {GRAINS_ACROSS} of the largest grains "
                                              f"({d_max * 1e3:.2f} mm after scaling) across: >= "
                                              f"{GRAINS_ACROSS * d_max:.4g} m; or set specimen.truncate_above")
+
+
+# --------------------------------------------------------------------------- calibration files (cosim calibrate)
+#: what a calibration target can be, read from a direct shear run's summary.json
+CALIBRATION_QUANTITIES = {
+    "peak_friction_angle_deg": "peak friction angle phi_peak [deg]",
+    "residual_friction_angle_deg": "residual friction angle phi_res [deg]",
+    "vertical_displacement_end": "vertical displacement of the top plate at the end, dilation + [m]",
+    "void_ratio_change": "void ratio at the end minus after consolidation [-]",
+}
+
+
+class CalibrationTarget(_Section):
+    quantity: Literal[tuple(CALIBRATION_QUANTITIES)] = Field(
+        description="a direct shear result: " + "; ".join(f"{k}: {v}" for k, v in CALIBRATION_QUANTITIES.items()))
+    value: float = Field(description="the value to reach (unit of the quantity)")
+    tolerance: float = Field(gt=0, description="reached when |achieved - value| <= this (unit of the quantity)")
+    normal_stress: float = Field(gt=0, le=10e6, description="normal stress of the test this target is for [Pa]")
+
+
+class CalibrationParameter(_Section):
+    name: Literal["friction", "rolling_stiffness", "rolling_friction", "stiffness_ratio"] = Field(
+        description="a micro-parameter of the sand material (direct_shear.sand_material): friction mu, "
+                    "rolling_stiffness beta_r, rolling_friction eta_r, stiffness_ratio k_n/k_t")
+    lower: float = Field(ge=0, description="lower bound [-]")
+    upper: float = Field(gt=0, description="upper bound [-]")
+
+
+class CalibrationFile(_Section):
+    case: str = Field(description="the direct_shear case the search runs on (small: every evaluation is a "
+                                  "run per target normal stress), relative to this file")
+    confirm_case: Optional[str] = Field(
+        default=None, description="a direct_shear case (full size) run once with the result, relative to this file")
+    budget: int = Field(default=20, ge=3, le=500,
+                        description="largest number of evaluations (parameter sets), the two bounds' corners included")
+    targets: list[CalibrationTarget] = Field(min_length=1, max_length=20, description="[[targets]] tables")
+    parameters: list[CalibrationParameter] = Field(min_length=1, max_length=4, description="[[parameters]] tables")
+
+
+def load_calibration(path):
+    """Read and validate a calibration file and the case files it names; returns
+    ``(CalibrationFile, case path, confirm case path or None)``. Every failure is a
+    CaseError naming the file, the key, the value and what is allowed."""
+    path = Path(path)
+    if not path.is_file():
+        raise CaseError(path, "<file>", str(path), "the calibration file must exist and be a readable TOML file")
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise CaseError(path, "<syntax>", str(exc), "the file must be valid TOML (UTF-8)") from None
+    try:
+        spec = CalibrationFile.model_validate(raw)
+    except ValidationError as exc:
+        raise schema_error(path, exc, CalibrationFile) from None
+    names = [p.name for p in spec.parameters]
+    for i, p in enumerate(spec.parameters):
+        if p.name in names[:i]:
+            raise CaseError(path, f"parameters[{i}].name", p.name, "each parameter may be given once")
+        if p.upper <= p.lower:
+            raise CaseError(path, f"parameters[{i}].upper", p.upper,
+                            f"must be above lower = {p.lower} (the bounds are reversed or equal)")
+        if p.name == "stiffness_ratio" and p.lower <= 0:
+            raise CaseError(path, f"parameters[{i}].lower", p.lower, "k_n/k_t must be above 0")
+    cases = []
+    for key in ("case", "confirm_case"):
+        given = getattr(spec, key)
+        if given is None:
+            cases.append(None)
+            continue
+        case_path = resolve_path(path, given)
+        case, _ = load_case(case_path)  # the case's own errors name the case file
+        if case.case.kind != "direct_shear":
+            raise CaseError(path, key, given, f"must be a case of kind 'direct_shear' (it is '{case.case.kind}')")
+        sand = next(m for m in case.dem.materials if m.name == case.direct_shear.sand_material)
+        if "rolling_friction" in names and "rolling_stiffness" not in names and sand.rolling_stiffness == 0:
+            raise CaseError(path, "parameters", "rolling_friction",
+                            f"the sand of {given} has rolling_stiffness = 0, so a rolling friction does nothing: "
+                            "give it a rolling_stiffness or calibrate rolling_stiffness too")
+        cases.append(case_path)
+    return spec, cases[0], cases[1]

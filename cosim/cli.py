@@ -1,4 +1,4 @@
-"""The ``cosim`` command line: ``run``, ``check``, ``series``, ``elastic``, ``info``, ``schema``.
+"""The ``cosim`` command line: ``run``, ``check``, ``series``, ``elastic``, ``calibrate``, ``info``, ``schema``.
 
 Exit codes: 0 success, 2 bad input (case file, key, value named), 1 runtime failure.
 Under ``mpirun -n N`` every rank runs, only rank 0 prints. Validation runs on every
@@ -64,6 +64,18 @@ def _parser():
     elastic.add_argument("--out", metavar="DIR", help="output folder (default runs/out/<case.name>/elastic)")
     elastic.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
 
+    calibrate = sub.add_parser(
+        "calibrate", help="fit the sand's micro-parameters to direct shear targets",
+        description="Search the sand's micro-parameters (friction, rolling_stiffness, rolling_friction, "
+                    "stiffness_ratio, within bounds) until a direct_shear case gives the target results "
+                    "(phi_peak, phi_res, dilation, void ratio change at stated normal stresses), then confirm "
+                    "them on a full-size case and write calibrated.toml and a report (cosim/lab/calibrate.py). "
+                    "Rerun to continue an interrupted calibration. Exit 0 when every target is reached, 1 when "
+                    "not (the report says why), 2 on bad input.")
+    calibrate.add_argument("calibration", metavar="CALIBRATION.toml", help="calibration file (targets, parameters)")
+    calibrate.add_argument("--out", metavar="DIR", help="output folder (default runs/out/calibrate/<file name>)")
+    calibrate.add_argument("--no-confirm", action="store_true", help="skip the run on the confirm_case")
+
     sub.add_parser("info", help="versions of the stack, MPI size and Numba threads",
                    description="Print versions of DOLFINx, Numba, mpi4py, petsc4py, gmsh, meshio, the MPI size "
                                "and Numba threads.")
@@ -87,6 +99,8 @@ def main(argv=None):
             return _guarded(comm, lambda: _series(jobs, Path(args.out)))
         if args.command == "elastic":
             return _elastic(args)
+        if args.command == "calibrate":
+            return _calibrate(args)
         app, prepared = _guarded(comm, lambda: _agreed(comm, lambda: _prepare(args)), passes=CaseError)
         if args.command == "check":
             say(f"{args.case}: OK (kind '{prepared.case.case.kind}', name '{prepared.case.case.name}'; "
@@ -205,6 +219,20 @@ def _elastic(args):
     check_output_folder(out_dir)
     measure(case, args.case, args.stress, args.strain, out_dir, args.size)
     return 0
+
+
+def _calibrate(args):
+    """``cosim calibrate``: one process; the calibration file and its cases checked first."""
+    from cosim.case import load_calibration
+    from cosim.lab.calibrate import run_calibration
+    from cosim.outputs import check_output_folder, mpi_comm
+    if mpi_comm().size > 1:
+        raise CaseError("<command line>", "mpirun", mpi_comm().size, "cosim calibrate runs on one process")
+    load_calibration(args.calibration)
+    out_dir = Path(args.out) if args.out else DEFAULT_OUT_ROOT / "calibrate" / Path(args.calibration).stem
+    check_output_folder(out_dir)
+    outcome = run_calibration(args.calibration, out_dir, confirm_runs=not args.no_confirm)
+    return 0 if outcome.status == "reached" else EXIT_RUN_FAILED
 
 
 def _info():

@@ -19,7 +19,7 @@ from pathlib import Path
 from cosim.outputs import atomic_write_text, say
 
 
-def _done(out_dir, resolved):
+def finished(out_dir, resolved):
     """A run finished earlier with the same resolved case (an interrupted series resumes)."""
     import tomllib
 
@@ -66,7 +66,7 @@ def run_series(jobs, out_root):
     for label, stress, prepared in jobs:
         out_dir = prepared.out_dir
         out_dir.mkdir(parents=True, exist_ok=True)
-        if _done(out_dir, prepared.resolved):
+        if finished(out_dir, prepared.resolved):
             say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa: reusing the finished run in {out_dir}")
         else:
             say(f"[series] {label} at sigma_n = {stress / 1e3:g} kPa -> {out_dir}")

@@ -1,0 +1,347 @@
+"""``cosim calibrate``: find the sand's micro-parameters so that the direct shear test gives
+target results (thesis §1.4: contact stiffness, friction and rolling resistance cannot be
+measured; they are fitted so that a simulated lab test matches the real one).
+
+A calibration file (``cosim.case.CalibrationFile``) names a direct_shear case, targets
+(a quantity of ``summary.json`` at a stated σ_n, with a tolerance) and up to four
+parameters of the sand material with bounds. The search, step by step:
+
+1. **One specimen.** The case's specimen is generated once, as written, and reused by every
+   evaluation (as in ``cosim series``): only the test's micro-parameters change.
+2. **An evaluation** is one run of the case per distinct target σ_n with one parameter set.
+   Its misfit is Σ ((achieved − value) / tolerance)²; the targets are reached when every
+   |achieved − value| ≤ tolerance.
+3. **Reachability.** The two corners of the bounds (all parameters at their lower, then at
+   their upper bound) are evaluated first. φ, dilation and strength rise with μ, β_r and η_r
+   and fall with k_n/k_t, so the corners span what the bounds can give. A target outside
+   that span by more than its tolerance is reported as unreachable, and the search stops
+   before it begins.
+4. **Search.** Nelder–Mead (scipy.optimize.minimize; derivative-free, and it tolerates the
+   noise of a chaotic simulation) runs on the parameters scaled to [0, 1] within the bounds.
+   It starts from a simplex around the centre that spans 30 % of each range. The search
+   stops when the targets are reached, when ``budget`` evaluations are spent, or when the
+   simplex has shrunk to 0.1 % of the ranges.
+5. **Resumable.** Every evaluation is a row of ``evaluations.csv``. Rerun, the search
+   takes the same steps (Nelder–Mead is deterministic for given values) and reads finished
+   evaluations from the CSV instead of running them again.
+6. **Confirmation and report.** With ``confirm_case`` (the full-size case), the best
+   parameters are run once on it at every target σ_n. ``calibrated.toml`` is the confirmed
+   (or searched) case with the parameters written in. ``report.md``/``report.json`` give
+   the target, small-case and full-size values, and ``calibration.png`` the history.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cosim.errors import CaseError
+from cosim.outputs import atomic_write_text, say
+
+SIMPLEX_SPAN = 0.3   # the initial simplex spans this fraction of each parameter's range
+STALL = 1e-3         # the search has stalled when the simplex is this small (scaled units)
+
+
+@dataclass
+class Evaluation:
+    """One parameter set and what the test gave with it (one value per target)."""
+    index: int
+    parameters: dict
+    achieved: list
+    misfit: float
+    reached: bool
+    wall_clock_s: float
+
+
+@dataclass
+class Calibration:
+    """The outcome: ``status`` is 'reached', 'unreachable', 'budget' or 'stalled'."""
+    status: str
+    message: str
+    evaluations: list = field(default_factory=list)
+
+    @property
+    def best(self):
+        return min(self.evaluations, key=lambda e: e.misfit)
+
+
+def quantity_of(summary, name):
+    """A calibration quantity from a run's summary (``CALIBRATION_QUANTITIES``)."""
+    if name == "void_ratio_change":
+        return summary["void_ratio_end"] - summary["void_ratio_consolidated"]
+    return summary[name]
+
+
+def misfit(achieved, targets):
+    """Σ ((achieved − value) / tolerance)² over the targets."""
+    return float(sum(((a - t.value) / t.tolerance) ** 2 for a, t in zip(achieved, targets, strict=True)))
+
+
+def target_label(t):
+    return f"{t.quantity}@{t.normal_stress / 1e3:g}kPa"
+
+
+class EvaluationLog:
+    """``evaluations.csv``: one row per evaluation, read back on a rerun (the memo of
+    finished evaluations, keyed by the exact parameter values)."""
+
+    def __init__(self, path, names, targets):
+        self.path, self.names, self.targets = Path(path), names, targets
+        self.columns = ["evaluation", *names, *map(target_label, targets), "misfit", "reached", "wall_clock_s"]
+        self.memo = {}
+        if self.path.exists():
+            with open(self.path, newline="") as f:
+                rows = list(csv.DictReader(f))
+            if rows and list(rows[0]) != self.columns:
+                raise CaseError("<command line>", "--out", str(self.path.parent),
+                                f"{self.path.name} there was written for other parameters or targets; "
+                                "give another output folder")
+            for row in rows:
+                values = tuple(float(row[n]) for n in names)
+                self.memo[values] = [float(row[target_label(t)]) for t in targets], float(row["wall_clock_s"])
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with open(self.path, "w", newline="") as f:
+                csv.writer(f).writerow(self.columns)
+
+    def append(self, e):
+        with open(self.path, "a", newline="") as f:
+            csv.writer(f).writerow([e.index, *(repr(e.parameters[n]) for n in self.names),
+                                    *(repr(a) for a in e.achieved), repr(e.misfit), int(e.reached),
+                                    f"{e.wall_clock_s:.1f}"])
+
+
+class _Stop(Exception):
+    def __init__(self, status, message):
+        super().__init__(message)
+        self.status, self.message = status, message
+
+
+def calibrate(spec, evaluate, log_path, progress=say):
+    """Run the search of the module docstring. ``evaluate(parameters, normal_stress, label)``
+    returns a run's summary (a dict with the target quantities); ``label`` names the
+    evaluation (its run folder). Returns a :class:`Calibration`."""
+    from scipy.optimize import minimize
+    names = [p.name for p in spec.parameters]
+    lower = np.array([p.lower for p in spec.parameters])
+    upper = np.array([p.upper for p in spec.parameters])
+    targets = spec.targets
+    stresses = sorted({t.normal_stress for t in targets})
+    log = EvaluationLog(log_path, names, targets)
+    evaluations = []
+    t_start = time.perf_counter()
+
+    def run(u):
+        x = tuple(float(v) for v in lower + np.clip(u, 0.0, 1.0) * (upper - lower))
+        parameters = dict(zip(names, x, strict=True))
+        index = len(evaluations) + 1
+        if x in log.memo:
+            achieved, clock = log.memo[x]
+        else:
+            t0 = time.perf_counter()
+            summaries = {s: evaluate(parameters, s, f"{index:03d}") for s in stresses}
+            achieved = [float(quantity_of(summaries[t.normal_stress], t.quantity)) for t in targets]
+            clock = time.perf_counter() - t0
+        e = Evaluation(index, parameters, achieved, misfit(achieved, targets),
+                       all(abs(a - t.value) <= t.tolerance for a, t in zip(achieved, targets, strict=True)), clock)
+        evaluations.append(e)
+        if x not in log.memo:
+            log.append(e)
+            log.memo[x] = achieved, clock
+        _report_progress(progress, e, evaluations, targets, spec.budget, t_start)
+        if e.reached:
+            raise _Stop("reached", f"every target reached at evaluation {index}")
+        if index >= spec.budget:
+            raise _Stop("budget", f"the budget of {spec.budget} evaluations is spent before every target was reached")
+        return e.misfit
+
+    n = len(names)
+    try:
+        run(np.zeros(n))  # the corners span what the bounds can give
+        run(np.ones(n))
+        unreachable = _unreachable(targets, evaluations[0].achieved, evaluations[1].achieved)
+        if unreachable:
+            raise _Stop("unreachable", "; ".join(unreachable))
+        centre = np.full(n, 0.5)
+        simplex = np.vstack([centre] + [centre + SIMPLEX_SPAN * np.eye(n)[i] for i in range(n)])
+        minimize(run, centre, method="Nelder-Mead", bounds=[(0.0, 1.0)] * n,
+                 options={"initial_simplex": simplex, "maxfev": 10 * spec.budget, "xatol": STALL,
+                          "fatol": 0.0})
+        outcome = Calibration("stalled", "the search stalled (its simplex shrank to 0.1 % of the ranges) before "
+                                         "every target was reached: the targets may conflict, or the noise of the "
+                                         "test is larger than a tolerance", evaluations)
+    except _Stop as stop:
+        outcome = Calibration(stop.status, stop.message, evaluations)
+    return outcome
+
+
+def _unreachable(targets, low, high):
+    """The targets outside the span of the two corners' values, each described."""
+    out = []
+    for t, a, b in zip(targets, low, high, strict=True):
+        lo, hi = min(a, b), max(a, b)
+        if not lo - t.tolerance <= t.value <= hi + t.tolerance:
+            out.append(f"{t.quantity} = {t.value:g} at {t.normal_stress / 1e3:g} kPa cannot be reached within the "
+                       f"bounds: their corners give {lo:.4g} ... {hi:.4g}; widen the bounds or add a parameter")
+    return out
+
+
+def _report_progress(progress, e, evaluations, targets, budget, t_start):
+    elapsed = time.perf_counter() - t_start
+    eta = elapsed / len(evaluations) * (budget - len(evaluations))
+    params = ", ".join(f"{k} = {v:.4g}" for k, v in e.parameters.items())
+    got = ", ".join(f"{t.quantity} {a:.4g} ({t.value:g} ± {t.tolerance:g})"
+                    for t, a in zip(targets, e.achieved, strict=True))
+    best = min(x.misfit for x in evaluations)
+    progress(f"[calibrate] {e.index}/{budget}: {params} -> {got}; misfit {e.misfit:.3g} (best {best:.3g}); "
+             f"{elapsed:.0f} s elapsed, ETA <= {eta:.0f} s")
+
+
+# --------------------------------------------------------------------------- running the case
+class ShearEvaluator:
+    """Runs a direct_shear case with the sand's parameters overridden (``--set``) at one
+    normal stress, in ``out_root/<label>/<σ>kPa``; the specimen is generated once into
+    ``out_root/specimen.npz`` and reused. A finished run with the same resolved case is
+    read back, not rerun."""
+
+    def __init__(self, case_path, out_root):
+        from cosim.case import load_case
+        self.case_path, self.out_root = Path(case_path), Path(out_root)
+        case, _ = load_case(self.case_path)
+        names = [m.name for m in case.dem.materials]
+        self.sand = names.index(case.direct_shear.sand_material)
+
+    def overrides(self, parameters):
+        return [f"dem.materials[{self.sand}].{k}={v!r}" for k, v in parameters.items()]
+
+    def __call__(self, parameters, normal_stress, label):
+        from cosim.apps import Prepared
+        from cosim.apps import direct_shear as app
+        from cosim.case import load_case
+        from cosim.lab.series import finished
+        stress = f"direct_shear.normal_stress={float(normal_stress)!r}"
+        case, resolved = load_case(self.case_path, self.overrides(parameters) + [stress])
+        out_dir = self.out_root / label / f"{normal_stress / 1e3:g}kPa"
+        out_dir.mkdir(parents=True, exist_ok=True)
+        if not finished(out_dir, resolved):
+            built = app.prepare(case, self.case_path, out_dir, False)
+            app.run(Prepared(case, resolved, self.case_path, out_dir, False, built),
+                    specimen_cache=self.out_root / "specimen.npz")
+        return json.loads((out_dir / "summary.json").read_text())
+
+
+def confirm(spec, confirm_path, parameters, out_root):
+    """The best parameters on the confirmation case at every target σ_n: the achieved
+    value per target."""
+    evaluate = ShearEvaluator(confirm_path, out_root)
+    summaries = {s: evaluate(parameters, s, "best") for s in sorted({t.normal_stress for t in spec.targets})}
+    return [float(quantity_of(summaries[t.normal_stress], t.quantity)) for t in spec.targets]
+
+
+def calibrated_case_text(case_path, overrides, note):
+    """The case file with the calibrated values written in (TOML; comments are not kept),
+    a packing file path made absolute so the new file works from anywhere."""
+    import tomllib
+
+    import tomli_w
+
+    from cosim.case import apply_overrides, resolve_path
+    raw = apply_overrides(case_path, tomllib.loads(Path(case_path).read_text()), overrides)
+    specimen = raw.get("specimen", {})
+    if "file" in specimen:
+        specimen["file"] = str(resolve_path(case_path, specimen["file"]))
+    return "".join(f"# {line}\n" for line in note.splitlines()) + tomli_w.dumps(raw)
+
+
+# --------------------------------------------------------------------------- report
+def write_report(out_root, spec, outcome, confirmed=None, calibrated_from=None):
+    """``report.json``, ``report.md`` and ``calibration.png`` in ``out_root``."""
+    best = outcome.best
+    rows = []
+    for i, t in enumerate(spec.targets):
+        rows.append({"quantity": t.quantity, "normal_stress": t.normal_stress, "target": t.value,
+                     "tolerance": t.tolerance, "searched_case": best.achieved[i],
+                     "confirm_case": None if confirmed is None else confirmed[i]})
+    report = {"status": outcome.status, "message": outcome.message, "evaluations": len(outcome.evaluations),
+              "best_evaluation": best.index, "parameters": best.parameters, "misfit": best.misfit,
+              "bounds": {p.name: [p.lower, p.upper] for p in spec.parameters}, "targets": rows,
+              "wall_clock_s": sum(e.wall_clock_s for e in outcome.evaluations),
+              "calibrated_case": calibrated_from}
+    atomic_write_text(out_root / "report.json", json.dumps(report, indent=2))
+    lines = [f"# Calibration: {outcome.status}", "", outcome.message, "",
+             f"Best of {len(outcome.evaluations)} evaluations (no. {best.index}): "
+             + ", ".join(f"{k} = {v:.4g}" for k, v in best.parameters.items()), "",
+             "| quantity | σ_n [kPa] | target | searched case | confirm case |", "|---|---|---|---|---|"]
+    for r in rows:
+        c = "-" if r["confirm_case"] is None else f"{r['confirm_case']:.4g}"
+        lines.append(f"| {r['quantity']} | {r['normal_stress'] / 1e3:g} | {r['target']:g} ± {r['tolerance']:g} | "
+                     f"{r['searched_case']:.4g} | {c} |")
+    atomic_write_text(out_root / "report.md", "\n".join(lines) + "\n")
+    plot_history(out_root / "calibration.png", spec, outcome)
+    return report
+
+
+def plot_history(path, spec, outcome):
+    """Misfit, scaled parameters and scaled target errors against the evaluation number."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    evals = outcome.evaluations
+    k = [e.index for e in evals]
+    fig, axes = plt.subplots(3, 1, figsize=(7.0, 8.0), sharex=True)
+    misfits = np.array([e.misfit for e in evals])
+    axes[0].semilogy(k, np.maximum(misfits, 1e-6), "o-", ms=3, label="misfit")
+    axes[0].semilogy(k, np.maximum(np.minimum.accumulate(misfits), 1e-6), color="tab:red", label="best so far")
+    axes[0].axhline(len(spec.targets), color="0.6", ls=":", label="every error = its tolerance")
+    axes[0].set_ylabel("Σ (error / tolerance)²")
+    axes[0].legend(fontsize=8)
+    for p in spec.parameters:
+        axes[1].plot(k, [(e.parameters[p.name] - p.lower) / (p.upper - p.lower) for e in evals], "o-", ms=3,
+                     label=f"{p.name} ({p.lower:g} ... {p.upper:g})")
+    axes[1].set_ylabel("parameter within its bounds")
+    axes[1].set_ylim(-0.05, 1.05)
+    axes[1].legend(fontsize=8)
+    for i, t in enumerate(spec.targets):
+        axes[2].plot(k, [(e.achieved[i] - t.value) / t.tolerance for e in evals], "o-", ms=3, label=target_label(t))
+    axes[2].axhspan(-1, 1, color="tab:green", alpha=0.15, label="within tolerance")
+    axes[2].set_ylabel("(achieved − target) / tolerance")
+    axes[2].set_xlabel("evaluation")
+    axes[2].legend(fontsize=8)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"cosim calibrate: {outcome.status}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def run_calibration(calibration_path, out_root, confirm_runs=True):
+    """``cosim calibrate``: validate, search, confirm, report; returns the Calibration."""
+    from cosim.case import load_calibration
+    spec, case_path, confirm_path = load_calibration(calibration_path)
+    out_root = Path(out_root)
+    outcome = calibrate(spec, ShearEvaluator(case_path, out_root / "search"), out_root / "evaluations.csv")
+    say(f"[calibrate] {outcome.status}: {outcome.message}")
+    best = outcome.best
+    confirmed = None
+    target_case = case_path
+    if outcome.status == "reached" and confirm_path is not None and confirm_runs:
+        say(f"[calibrate] confirming {best.parameters} on {confirm_path}")
+        confirmed = confirm(spec, confirm_path, best.parameters, out_root / "confirm")
+        target_case = confirm_path
+    calibrated = None
+    if outcome.status == "reached":
+        overrides = ShearEvaluator(target_case, out_root).overrides(best.parameters)
+        note = (f"Calibrated by `cosim calibrate {calibration_path}` (see report.md next to this file):\n"
+                + "\n".join(f"  sand {k} = {v!r}" for k, v in best.parameters.items())
+                + f"\nfrom {Path(target_case).resolve()}")
+        calibrated = out_root / "calibrated.toml"
+        atomic_write_text(calibrated, calibrated_case_text(target_case, overrides, note))
+    report = write_report(out_root, spec, outcome, confirmed, str(calibrated) if calibrated else None)
+    say((out_root / "report.md").read_text())
+    say(f"[calibrate] outputs: {out_root} (best misfit {report['misfit']:.3g})")
+    return outcome
