@@ -101,6 +101,11 @@ def main(argv=None):
             return _elastic(args)
         if args.command == "calibrate":
             return _calibrate(args)
+        if args.command == "check" and _is_calibration_file(args.case):
+            from cosim.case import load_calibration
+            load_calibration(args.case)
+            say(f"{args.case}: OK (a calibration file: run it with `cosim calibrate {args.case}`)")
+            return 0
         app, prepared = _guarded(comm, lambda: _agreed(comm, lambda: _prepare(args)), passes=CaseError)
         if args.command == "check":
             say(f"{args.case}: OK (kind '{prepared.case.case.kind}', name '{prepared.case.case.name}'; "
@@ -219,6 +224,15 @@ def _elastic(args):
     check_output_folder(out_dir)
     measure(case, args.case, args.stress, args.strain, out_dir, args.size)
     return 0
+
+
+def _is_calibration_file(path):
+    """A calibration file names its case (``case = "x.toml"``); a case file has a [case] table."""
+    import tomllib
+    try:
+        return isinstance(tomllib.loads(Path(path).read_text(encoding="utf-8")).get("case"), str)
+    except (OSError, ValueError):
+        return False  # load_case reports it
 
 
 def _calibrate(args):

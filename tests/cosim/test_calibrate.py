@@ -113,10 +113,18 @@ TARGET = '[[targets]]\nquantity = "peak_friction_angle_deg"\nvalue = 42.0\ntoler
     (TARGET + '[[parameters]]\nname = "friction"\nlower = 0.1\nupper = 1.0\nbudget = 1\n', "parameters[0].budget"),
 ])
 def test_bad_calibration_files_get_one_clear_message(tmp_path, capsys, body, key):
-    assert main(["calibrate", str(_calibration_file(tmp_path, body)), "--out", str(tmp_path / "out")]) == 2
+    """The same message from `cosim check` and `cosim calibrate`, before anything runs."""
+    path = _calibration_file(tmp_path, body)
+    assert main(["check", str(path)]) == 2
+    checked = capsys.readouterr().err
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert f"key '{key}'" in err and err.count("error") == 1
+    assert f"key '{key}'" in err and err.count("error") == 1 and err == checked
     assert not (tmp_path / "out").exists()
+
+
+def test_the_shipped_calibration_file_checks():
+    assert main(["check", str(RUNS / "calibrate_thesis.toml")]) == 0
 
 
 MINI_CALIBRATION = """
