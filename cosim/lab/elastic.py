@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim.errors import CaseError
+from cosim.lab.cubical_box import box_lengths, box_walls, wall_stresses
 from cosim.outputs import atomic_write_text, say
 
 SERVO_GAIN = 0.5
@@ -62,29 +63,6 @@ def roles(case, case_path):
         return case.footing.sand_material, case.footing.side_wall_material, case.zone.interface_material
     raise CaseError(case_path, "case.kind", case.case.kind,
                     "cosim elastic measures the grains of a 'direct_shear' or 'footing' case ([dem] and [specimen])")
-
-
-def box_walls(lx, ly, lz, material):
-    """Six frictionless rigid walls around [0, lx] × [0, ly] × [0, lz]: x0, x1, y0, y1, bottom, top."""
-    from de_domain import PlaneWall
-    corner = (lx, ly, lz)
-    walls = []
-    for axis in range(3):
-        normal = np.eye(3)[axis]
-        walls += [PlaneWall(np.zeros(3), normal, material), PlaneWall(normal * corner[axis], -normal, material)]
-    return walls
-
-
-def wall_stresses(engine):
-    """(σ_xx, σ_yy, σ_zz) on the walls x = L_x, y = L_y, z = L_z (compression > 0, Pa)."""
-    w = engine.walls
-    lx, ly, lz = w[1].point[0] - w[0].point[0], w[3].point[1] - w[2].point[1], w[5].point[2] - w[4].point[2]
-    return np.array([w[1].force[0] / (ly * lz), w[3].force[1] / (lx * lz), w[5].force[2] / (lx * ly)])
-
-
-def box_lengths(engine):
-    w = engine.walls
-    return np.array([w[1].point[0] - w[0].point[0], w[3].point[1] - w[2].point[1], w[5].point[2] - w[4].point[2]])
 
 
 def averaged_stresses(engine, steps=AVERAGE_STEPS, every=10):

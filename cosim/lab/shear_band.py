@@ -16,8 +16,9 @@ the displacement across a band whose shear strain is a Gaussian of standard devi
     ū(z) = a + (b − a) · ½ [1 + erf((z − z_c) / (√2 w))]
 
 The reported thickness is the 10–90 % width of that step, t = 2 Φ⁻¹(0.9) w = 2.563 w,
-in mm and in d50. This is the usual measure of a band from a displacement profile; it
-gives a band of about 10 d50 in sheared sand (Oda & Kazama 1998; Jiang, Liu et al. 2018).
+in mm and in d50. Bands in real sands are commonly reported as 10–20 d50 thick (Roscoe
+1970). A direct shear box pins the band to its split plane and its height h: with h of
+only 5–12 d50 (the cases here), the band reaches the plates.
 """
 from __future__ import annotations
 
