@@ -39,9 +39,10 @@ class CaseInfo(_Section):
     name: str = Field(
         pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$",
         description="case name: letters, digits, '.', '_', '-' (at most 100, no path); outputs go to runs/out/<name>/")
-    kind: Literal["dem", "direct_shear", "fe", "coupled", "footing"] = Field(
+    kind: Literal["dem", "direct_shear", "triaxial", "fe", "coupled", "footing"] = Field(
         description="what to run: 'dem' (a DEM simulation of particles and walls), "
                     "'direct_shear' (specimen generation + the direct shear test, docs/design.md §3), "
+                    "'triaxial' (specimen generation + a drained triaxial compression test, docs/design.md §3.10), "
                     "'fe' (the explicit mixed u-p solid on a gmsh mesh, docs/design.md §4), "
                     "'coupled' (FE solid and DEM particles through an interface, docs/design.md §5), "
                     "'footing' (a rigid strip footing pushed into a DEM zone embedded in an FE soil block, "
@@ -415,6 +416,49 @@ class ZoneSection(_Section):
         description="DEM steps per FE step [-]; default the largest the FE stability allows")
 
 
+class TriaxialSection(_Section):
+    size: float = Field(gt=0, description="side L of the cubical specimen (height = L) [m]")
+    cell_pressure: float = Field(
+        default=100e3, gt=0, le=10e6,
+        description="confining stress sigma_3 held on the lateral walls (and on the top while consolidating) [Pa]")
+    axial_strain: float = Field(
+        default=0.25, gt=0, le=0.5,
+        description="axial strain eps_1 = (H0 - H)/H0 at the end of the compression [-]")
+    strain_rate: Optional[float] = Field(
+        default=None, gt=0,
+        description="axial strain rate [1/s]; default from inertial_number")
+    inertial_number: float = Field(
+        default=1e-3, gt=0, le=0.1,
+        description="target I = strain_rate d50 sqrt(rho/sigma_3) when strain_rate is not given [-]")
+    ramp_strain: float = Field(
+        default=0.005, ge=0,
+        description="the axial velocity ramps up linearly (from 2 %) over this axial strain, so the lateral "
+                    "servo follows the first load [-]")
+    servo_gain: float = Field(
+        default=0.3, gt=0, le=1,
+        description="fraction of the stress error a servo wall removes per update (as direct_shear.servo_gain) [-]")
+    servo_integral: float = Field(
+        default=0.01, ge=0, le=0.2,
+        description="integral action: per update the integral velocity grows by this x the proportional one [-]")
+    servo_interval: int = Field(default=2, ge=1, le=1000, description="DEM steps between servo updates [-]")
+    servo_max_velocity: float = Field(default=0.05, gt=0, description="largest servo wall speed [m/s]")
+    consolidation_tolerance: float = Field(
+        default=0.01, gt=0, le=0.1,
+        description="consolidation ends when every |sigma - sigma_3|/sigma_3 is below this ... [-]")
+    consolidation_unbalanced_force: float = Field(
+        default=0.02, gt=0, le=0.5, description="... and the unbalanced force ratio is below this [-]")
+    max_consolidation_steps: int = Field(default=200000, gt=0, description="safety cap on consolidation steps [-]")
+    sand_material: str = Field(default="sand", description="material name of the grains ([[dem.materials]])")
+    wall_material: str = Field(
+        default="side_wall", description="material name of the six walls (frictionless, as a lubricated cell)")
+    plate_material: str = Field(
+        default="plate", description="material name of the generation box's bottom and compaction plate")
+    rows: int = Field(default=200, ge=10, le=100000, description="number of CSV rows over the axial strain [-]")
+    residual_fraction: float = Field(
+        default=0.2, gt=0, lt=1,
+        description="critical state = mean over the last fraction of the axial strain [-]")
+
+
 class Case(_Section):
     case: CaseInfo
     time: TimeSection
@@ -422,6 +466,7 @@ class Case(_Section):
     dem: Optional[DemSection] = None
     specimen: Optional[SpecimenSection] = None
     direct_shear: Optional[DirectShearSection] = None
+    triaxial: Optional[TriaxialSection] = None
     fe: Optional[FeSection] = None
     coupling: Optional[CouplingSection] = None
     footing: Optional[FootingSection] = None
@@ -579,6 +624,7 @@ def resolve_path(case_file, relative):
 SECTIONS_OF_KIND = {
     "dem": ("case", "time", "output", "dem"),
     "direct_shear": ("case", "time", "output", "dem", "specimen", "direct_shear"),
+    "triaxial": ("case", "time", "output", "dem", "specimen", "triaxial"),
     "fe": ("case", "time", "output", "fe"),
     "coupled": ("case", "time", "output", "dem", "fe", "coupling"),
     "footing": ("case", "time", "output", "dem", "specimen", "footing", "soil", "zone"),
@@ -597,6 +643,8 @@ _UNUSED = [
      "a footing run writes footing.rows CSV rows over the settlement; set rows instead"),
     ("output", ("interval",), lambda c, s: c.case.kind == "direct_shear",
      "a direct_shear run writes direct_shear.rows CSV rows over the shear distance; set rows instead"),
+    ("output", ("interval",), lambda c, s: c.case.kind == "triaxial",
+     "a triaxial run writes triaxial.rows CSV rows over the axial strain; set rows instead"),
     ("output", ("vtk",), lambda c, s: c.case.kind == "fe",
      "an fe run always writes its fields as XDMF; vtk is for particles"),
     ("dem.particles", ("file",), lambda c, s: s.source == "cloud", "source = 'cloud' reads no file"),
@@ -668,6 +716,9 @@ def _check_consistency(path, case):
         return
     if case.case.kind == "footing":
         _check_footing(path, case)
+        return
+    if case.case.kind == "triaxial":
+        _check_triaxial(path, case)
         return
     if (t.duration is None) == (t.steps is None):
         raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
@@ -894,6 +945,36 @@ def _check_direct_shear(path, case):
         raise CaseError(path, "specimen.truncate_above", sp.truncate_above,
                         f"the largest grain ({d_max * 1e3:.2f} mm after scaling) must be below half the sample height "
                         f"({0.5e3 * ds.sample_height:.2f} mm); set truncate_above or a smaller scale")
+
+
+def _check_triaxial(path, case):
+    """A triaxial case: [dem] materials, [specimen], [triaxial]; the run ends at the final
+    axial strain, so [time] only sets dt / safety_factor."""
+    t = case.time
+    if t.duration is not None or t.steps is not None:
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
+                        "a triaxial run lasts until triaxial.axial_strain; give only time.dt or time.safety_factor")
+    for section in ("dem", "specimen", "triaxial"):
+        if getattr(case, section) is None:
+            raise CaseError(path, section, None, f"a case of kind 'triaxial' needs a [{section}] section")
+    dem, sp, tx = case.dem, case.specimen, case.triaxial
+    if dem.particles is not None or dem.walls:
+        raise CaseError(path, "dem.particles" if dem.particles is not None else "dem.walls", "present",
+                        "a triaxial case builds its specimen from [specimen] and its walls itself; remove it")
+    _check_materials(path, dem, [(f"triaxial.{key}", getattr(tx, key))
+                                 for key in ("sand_material", "wall_material", "plate_material")]
+                     + _deposition_material(sp))
+    if sp.source == "file":
+        _check_packing_file(path, "specimen.file", sp.file)
+        return
+    if tx.ramp_strain >= tx.axial_strain:
+        raise CaseError(path, "triaxial.ramp_strain", tx.ramp_strain,
+                        f"must be smaller than axial_strain = {tx.axial_strain}")
+    d_max = _largest_grain(path, sp)
+    if d_max > tx.size / 6:
+        raise CaseError(path, "triaxial.size", tx.size,
+                        f"must hold at least 6 of the largest grains ({d_max * 1e3:.2f} mm) across; "
+                        f"give size >= {6 * d_max:.4g} m or smaller grains")
 
 
 def _check_materials(path, dem, keys):

@@ -212,3 +212,25 @@ class PvdCollection:
                          for t, part, f in self.entries)
         atomic_write_text(self.path, '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
                                      f"  <Collection>\n{body}\n  </Collection>\n</VTKFile>\n")
+
+
+def particle_frames(enabled, out_dir, loop, spacing, resume_time=None):
+    """ParaView frames of the particles and walls (``frames/`` + ``particles.pvd``) every
+    ``spacing`` of a loading measure (a lab test's shear displacement or axial strain); the
+    next frame's value is kept in ``loop["next_frame"]`` (checkpointed). Returns
+    ``write(engine, value)``, collective when the engine is distributed."""
+    if not enabled:
+        return lambda engine, value: None
+    from de_domain.io import write_frame
+    index = None
+    if is_root():
+        (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
+        index = PvdCollection(Path(out_dir) / "particles.pvd", resume_time)
+
+    def write(engine, value):
+        if value >= loop["next_frame"] - 1e-12:
+            paths = write_frame(Path(out_dir) / "frames", engine, engine.step_count)
+            if index is not None:
+                index.add(engine.time, paths)
+            loop["next_frame"] += spacing
+    return write

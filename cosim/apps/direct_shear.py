@@ -61,6 +61,7 @@ from cosim.outputs import (
     atomic_write_text,
     is_root,
     mpi_comm,
+    particle_frames,
     save_engine_checkpoint,
     say,
     write_run_metadata,
@@ -394,7 +395,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
         f"about {total_steps - loop['consolidation_steps']} steps")
     series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None) \
         if is_root() else None
-    frames = _frames(case, out_dir, loop, engine.time if resume else None)
+    frames = particle_frames(case.output.vtk, out_dir, loop, ds.shear_distance / 10, engine.time if resume else None)
     band_pictures = _band_pictures(case, out_dir, loop, test, resume)
     if not resume:
         frames(engine, 0)
@@ -519,28 +520,6 @@ def _initial_void_ratio(s):
     if s.get("source") in ("under_compaction", "radius_expansion"):
         return f"generated {e:.4f}"
     return f"from {s.get('source')} {e:.4f}" if e is not None else f"from {s.get('source')} (not stored there)"
-
-
-def _frames(case, out_dir, loop, resume_time=None, count=10):
-    """ParaView frames (particles + both box halves) at ``count`` points of the shear;
-    the next frame's δ is kept in ``loop["next_frame"]`` (checkpointed)."""
-    if not case.output.vtk:
-        return lambda engine, delta: None
-    from cosim.outputs import PvdCollection
-    from de_domain.io import write_frame
-    index = None
-    if is_root():
-        (Path(out_dir) / "frames").mkdir(parents=True, exist_ok=True)
-        index = PvdCollection(Path(out_dir) / "particles.pvd", resume_time)
-    spacing = case.direct_shear.shear_distance / count
-
-    def write(engine, delta):  # collective when the engine is distributed
-        if delta >= loop["next_frame"] - 1e-12:
-            paths = write_frame(out_dir / "frames", engine, engine.step_count)
-            if index is not None:
-                index.add(engine.time, paths)
-            loop["next_frame"] += spacing
-    return write
 
 
 def _band_pictures(case, out_dir, loop, test, resume):
