@@ -441,7 +441,10 @@ class TriaxialSection(_Section):
         default=0.01, ge=0, le=0.2,
         description="integral action: per update the integral velocity grows by this x the proportional one [-]")
     servo_interval: int = Field(default=2, ge=1, le=1000, description="DEM steps between servo updates [-]")
-    servo_max_velocity: float = Field(default=0.05, gt=0, description="largest servo wall speed [m/s]")
+    servo_max_velocity: Optional[float] = Field(
+        default=None, gt=0,
+        description="largest servo wall speed [m/s]; default twice the axial wall's (strain rate x size), so a "
+                    "dilating specimen never outruns the lateral walls")
     consolidation_tolerance: float = Field(
         default=0.01, gt=0, le=0.1,
         description="consolidation ends when every |sigma - sigma_3|/sigma_3 is below this ... [-]")

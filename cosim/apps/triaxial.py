@@ -150,6 +150,8 @@ class TriaxialTest:
         self.radii = engine.global_particles().radius  # collective when distributed
         self.solid_volume = float(np.sum(4.0 / 3.0 * np.pi * self.radii ** 3))
         self.d50 = mass_median_diameter(self.radii)
+        self.rate = strain_rate_of(self.tx, self.d50, self.density)
+        self.max_velocity = self.tx.servo_max_velocity or 2.0 * self.rate * self.tx.size
         self.stiffness = [0.0, 0.0, 0.0]
         self.stiffness_step = None
         self.v_integral = [0.0, 0.0, 0.0]
@@ -202,12 +204,12 @@ class TriaxialTest:
             if axis not in servo_axes:
                 wall.velocity = np.array([0.0, 0.0, -axial_velocity])
                 continue
+            v_max = self.max_velocity
             v = servo_velocity(sigma[axis], tx.cell_pressure, areas[axis], self.stiffness[axis],
-                               engine.dt * tx.servo_interval, tx.servo_gain, tx.servo_max_velocity)
+                               engine.dt * tx.servo_interval, tx.servo_gain, v_max)
             if self.stiffness[axis] > 0.0:  # integral action: no steady lag while the specimen dilates
-                self.v_integral[axis] = float(np.clip(self.v_integral[axis] + tx.servo_integral * v,
-                                                      -tx.servo_max_velocity, tx.servo_max_velocity))
-            v = float(np.clip(v + self.v_integral[axis], -tx.servo_max_velocity, tx.servo_max_velocity))
+                self.v_integral[axis] = float(np.clip(self.v_integral[axis] + tx.servo_integral * v, -v_max, v_max))
+            v = float(np.clip(v + self.v_integral[axis], -v_max, v_max))
             wall.velocity = np.eye(3)[axis] * v
         advance(engine, tx.servo_interval)
 
@@ -310,7 +312,7 @@ def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
                 "wall_clock_consolidation_s": time.perf_counter() - t_consolidation, "wall_clock_compression_s": 0.0,
                 "wall_clock_before_s": 0.0}
 
-    rate = strain_rate_of(tx, test.d50, test.density)
+    rate = test.rate
     velocity = rate * loop["height0"]
     # the ramp from 2 % of the rate over ramp_strain takes ln(50) ramp_strain / rate
     total_steps = loop["consolidation_steps"] + int(math.ceil(

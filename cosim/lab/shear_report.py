@@ -59,6 +59,21 @@ def mohr_coulomb_fit(normal_stress, shear_stress):
     return math.degrees(math.atan(slope)), float(c), r2
 
 
+def mohr_coulomb_fit_circles(centre, radius):
+    """The Mohr–Coulomb envelope τ = c + σ tan φ tangent to Mohr circles of centres
+    s = (σ₁ + σ₃)/2 and radii t = (σ₁ − σ₃)/2: least-squares t = c cos φ + s sin φ;
+    returns (φ [deg], c [Pa], R² of that line). One circle: through the origin (c = 0)."""
+    s, t = np.asarray(centre, float), np.asarray(radius, float)
+    if len(s) == 1:
+        return math.degrees(math.asin(t[0] / s[0])), 0.0, 1.0
+    slope, intercept = np.polyfit(s, t, 1)
+    pred = intercept + slope * s
+    ss = float(np.sum((t - t.mean()) ** 2))
+    r2 = 1.0 - float(np.sum((t - pred) ** 2)) / ss if ss > 0 else 1.0
+    phi = math.asin(slope)
+    return math.degrees(phi), float(intercept / math.cos(phi)), r2
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -105,41 +120,63 @@ def _save(fig, path):
 
 
 def plot_series(results, fits, path):
-    """Mohr–Coulomb envelopes: peak (filled) and residual (open) τ against σ_n per specimen."""
+    """Mohr–Coulomb envelopes per specimen. Direct shear: peak (filled) and residual (open)
+    τ against σ_n. Triaxial: the Mohr circles at the peak (solid) and at the critical
+    state (dotted), with their envelopes."""
     plt = _plt()
+    from matplotlib.patches import Arc
     fig, ax = plt.subplots(figsize=(6, 4.5))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    top = 0.0
     for k, (label, rows) in enumerate(results.items()):
         c = colors[k % len(colors)]
-        s = np.array([r["normal_stress"] for r in rows]) / 1e3
-        ax.plot(s, [r["peak_shear_stress"] / 1e3 for r in rows], "o", color=c)
-        ax.plot(s, [r["residual_shear_stress"] / 1e3 for r in rows], "s", mfc="none", color=c)
-        xs = np.linspace(0, s.max() * 1.1, 20)
-        for kind, ls in (("peak", "-"), ("residual", ":")):
-            phi, coh, _ = fits[label][kind]
+        triaxial = "cell_pressure" in rows[0]
+        if triaxial:
+            for r in rows:
+                for strength, ls in (("peak", "-"), ("residual", ":")):
+                    s, t = r[f"{strength}_normal_stress"] / 1e3, r[f"{strength}_shear_stress"] / 1e3
+                    ax.add_patch(Arc((s, 0.0), 2 * t, 2 * t, theta1=0, theta2=180, color=c, ls=ls, lw=0.8))
+                    top = max(top, s + t)
+        else:
+            s = np.array([r["normal_stress"] for r in rows]) / 1e3
+            ax.plot(s, [r["peak_shear_stress"] / 1e3 for r in rows], "o", color=c)
+            ax.plot(s, [r["residual_shear_stress"] / 1e3 for r in rows], "s", mfc="none", color=c)
+            top = max(top, s.max())
+        xs = np.linspace(0, top * 1.1, 20)
+        for strength, ls in (("peak", "-"), ("residual", ":")):
+            phi, coh, _ = fits[label][strength]
+            name = "critical state" if triaxial and strength == "residual" else strength
             ax.plot(xs, coh / 1e3 + xs * math.tan(math.radians(phi)), ls, color=c,
-                    label=f"{label} {kind}: φ = {phi:.1f}°, c = {coh / 1e3:.1f} kPa")
-    ax.set(xlabel="normal stress σ_n [kPa]", ylabel="shear stress τ [kPa]", title="Mohr–Coulomb envelopes")
+                    label=f"{label} {name}: φ = {phi:.1f}°, c = {coh / 1e3:.1f} kPa")
+    ax.set(xlabel="normal stress σ [kPa]", ylabel="shear stress τ [kPa]", title="Mohr–Coulomb envelopes")
     ax.set_xlim(left=0)
     ax.set_ylim(bottom=0)
+    ax.set_aspect("equal" if any("cell_pressure" in r[0] for r in results.values()) else "auto")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return _save(fig, Path(path))
 
 
 def plot_series_curves(curves, path):
-    """τ/σ_n–δ, vertical displacement–δ and shear-zone void ratio–δ of every run of a series."""
+    """Every run of a series. Direct shear: τ/σ_n, vertical displacement and shear-zone void
+    ratio against δ. Triaxial: mobilised sin φ, ε_v and e against ε₁."""
     plt = _plt()
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     for label, s in curves.items():
+        if "axial_strain" in s:
+            e1 = 100 * s["axial_strain"]
+            axes[0].plot(e1, s["sin_phi_mobilised"], label=label)
+            axes[1].plot(e1, 100 * s["volumetric_strain"], label=label)
+            axes[2].plot(e1, s["void_ratio"], label=label)
+            labels = ("ε₁ [%]", "(σ₁ − σ₃)/(σ₁ + σ₃) = sin φ [-]", "ε_v [%] (contraction +)", "void ratio e [-]")
+            continue
         d = s["shear_displacement"] * 1e3
         axes[0].plot(d, s["shear_stress"] / s["normal_stress"], label=label)
         axes[1].plot(d, s["vertical_displacement"] * 1e3, label=label)
         axes[2].plot(d, s["void_ratio_sphere_020h"], label=label)
-    axes[0].set(xlabel="δ [mm]", ylabel="τ/σ_n [-]")
-    axes[1].set(xlabel="δ [mm]", ylabel="vertical displacement [mm]")
-    axes[2].set(xlabel="δ [mm]", ylabel="void ratio, sphere 0.20 h [-]")
-    for ax in axes:
+        labels = ("δ [mm]", "τ/σ_n [-]", "vertical displacement [mm]", "void ratio, sphere 0.20 h [-]")
+    for ax, ylabel in zip(axes, labels[1:], strict=True):
+        ax.set(xlabel=labels[0], ylabel=ylabel)
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=7)
     return _save(fig, Path(path))

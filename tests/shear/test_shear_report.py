@@ -47,3 +47,14 @@ def test_plots_are_written(tmp_path):
     fits = {"dense": {"peak": mohr_coulomb_fit([50e3, 1e5], [40e3, 80e3]),
                       "residual": mohr_coulomb_fit([50e3, 1e5], [30e3, 60e3])}}
     assert plot_series({"dense": rows}, fits, tmp_path / "mc.png").stat().st_size > 1000
+
+
+def test_mohr_coulomb_fit_of_circles_recovers_phi_and_c():
+    """Triaxial failure states on τ = c + σ tan φ: σ₁ = σ₃ N + 2 c √N, N = tan²(45° + φ/2)."""
+    from cosim.lab.shear_report import mohr_coulomb_fit_circles
+    phi, c = math.radians(32.0), 8e3
+    n = math.tan(math.pi / 4 + phi / 2) ** 2
+    s3 = np.array([50e3, 100e3, 200e3])
+    s1 = s3 * n + 2 * c * math.sqrt(n)
+    fit_phi, fit_c, r2 = mohr_coulomb_fit_circles(0.5 * (s1 + s3), 0.5 * (s1 - s3))
+    assert fit_phi == pytest.approx(32.0, abs=1e-9) and fit_c == pytest.approx(c, rel=1e-9) and r2 == pytest.approx(1)

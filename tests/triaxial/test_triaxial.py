@@ -177,3 +177,22 @@ def test_bad_input_is_named(tmp_path, override, key):
     with pytest.raises(CaseError) as err:
         load_case(case, [override])
     assert err.value.key == key
+
+
+def test_a_series_over_the_cell_pressure_fits_the_envelope(tmp_path):
+    """`cosim series` on a triaxial case: one specimen, σ₃ = 50 and 150 kPa, the envelope
+    tangent to the two peak circles."""
+    case = tmp_path / "tx.toml"
+    case.write_text(MINI.format(name="tx_series", specimen=DENSE, strain=0.06))
+    out = tmp_path / "series"
+    assert main(["series", str(case), "--stresses", "50e3", "150e3", "--out", str(out)]) == 0
+    with open(out / "mohr_coulomb.csv") as f:
+        rows = {r["strength"]: r for r in csv.DictReader(f)}
+    runs = [json.loads((out / "tx_series" / f"{s}kPa" / "summary.json").read_text()) for s in (50, 150)]
+    assert [r["cell_pressure"] for r in runs] == [50e3, 150e3]
+    # two circles: the envelope is their common tangent, exactly
+    (s_a, t_a), (s_b, t_b) = [(r["peak_normal_stress"], r["peak_shear_stress"]) for r in runs]
+    sin_phi = (t_b - t_a) / (s_b - s_a)
+    assert float(rows["peak"]["phi_deg"]) == pytest.approx(math.degrees(math.asin(sin_phi)), abs=0.01)
+    for name in ("mohr_coulomb.png", "series_curves.png", "mohr_coulomb.md"):
+        assert (out / name).exists()
