@@ -1,14 +1,14 @@
-"""``cosim calibrate``: find the sand's micro-parameters so that the direct shear test gives
-target results (thesis §1.4: contact stiffness, friction and rolling resistance cannot be
+"""``cosim calibrate``: find the sand's micro-parameters so that a lab test (direct shear or
+triaxial) gives target results (thesis §1.4: contact stiffness, friction and rolling resistance cannot be
 measured; they are fitted so that a simulated lab test matches the real one).
 
-A calibration file (``cosim.case.CalibrationFile``) names a direct_shear case, targets
-(a quantity of ``summary.json`` at a stated σ_n, with a tolerance) and up to four
-parameters of the sand material with bounds. The search, step by step:
+A calibration file (``cosim.case.CalibrationFile``) names a direct_shear or triaxial case,
+targets (a quantity of ``summary.json`` at a stated σ_n or σ₃, with a tolerance) and up to
+four parameters of the sand material with bounds. The search, step by step:
 
 1. **One specimen.** The case's specimen is generated once, as written, and reused by every
    evaluation (as in ``cosim series``): only the test's micro-parameters change.
-2. **An evaluation** is one run of the case per distinct target σ_n with one parameter set.
+2. **An evaluation** is one run of the case per distinct target stress with one parameter set.
    Its misfit is Σ ((achieved − value) / tolerance)²; the targets are reached when every
    |achieved − value| ≤ tolerance.
 3. **Reachability.** The two corners of the bounds (all parameters at their lower, then at
@@ -25,7 +25,7 @@ parameters of the sand material with bounds. The search, step by step:
    takes the same steps (Nelder–Mead is deterministic for given values) and reads finished
    evaluations from the CSV instead of running them again.
 6. **Confirmation and report.** With ``confirm_case`` (the full-size case), the best
-   parameters are run once on it at every target σ_n. ``calibrated.toml`` is the confirmed
+   parameters are run once on it at every target stress. ``calibrated.toml`` is the confirmed
    (or searched) case with the parameters written in. ``report.md``/``report.json`` give
    the target, small-case and full-size values, and ``calibration.png`` the history.
 """
@@ -202,28 +202,29 @@ def _report_progress(progress, e, evaluations, targets, budget, t_start):
 
 
 # --------------------------------------------------------------------------- running the case
-class ShearEvaluator:
-    """Runs a direct_shear case with the sand's parameters overridden (``--set``) at one
-    normal stress, in ``out_root/<label>/<σ>kPa``; the specimen is generated once into
-    ``out_root/specimen.npz`` and reused. A finished run with the same resolved case is
+class LabEvaluator:
+    """Runs a direct_shear or triaxial case with the sand's parameters overridden (``--set``)
+    at one stress (σ_n or σ₃), in ``out_root/<label>/<σ>kPa``; the specimen is generated once
+    into ``out_root/specimen.npz`` and reused. A finished run with the same resolved case is
     read back, not rerun."""
 
     def __init__(self, case_path, out_root):
         from cosim.case import load_case
         self.case_path, self.out_root = Path(case_path), Path(out_root)
         case, _ = load_case(self.case_path)
+        self.kind = case.case.kind
         names = [m.name for m in case.dem.materials]
-        self.sand = names.index(case.direct_shear.sand_material)
+        self.sand = names.index(getattr(case, self.kind).sand_material)
 
     def overrides(self, parameters):
         return [f"dem.materials[{self.sand}].{k}={v!r}" for k, v in parameters.items()]
 
     def __call__(self, parameters, normal_stress, label):
         from cosim.apps import Prepared
-        from cosim.apps import direct_shear as app
         from cosim.case import load_case
-        from cosim.lab.series import finished
-        stress = f"direct_shear.normal_stress={float(normal_stress)!r}"
+        from cosim.lab.series import STRESS_KEY, finished, lab_app
+        app = lab_app(self.kind)
+        stress = f"{STRESS_KEY[self.kind]}={float(normal_stress)!r}"
         case, resolved = load_case(self.case_path, self.overrides(parameters) + [stress])
         out_dir = self.out_root / label / f"{normal_stress / 1e3:g}kPa"
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -237,7 +238,7 @@ class ShearEvaluator:
 def confirm(spec, confirm_path, parameters, out_root):
     """The best parameters on the confirmation case at every target σ_n: the achieved
     value per target."""
-    evaluate = ShearEvaluator(confirm_path, out_root)
+    evaluate = LabEvaluator(confirm_path, out_root)
     summaries = {s: evaluate(parameters, s, "best") for s in sorted({t.normal_stress for t in spec.targets})}
     return [float(quantity_of(summaries[t.normal_stress], t.quantity)) for t in spec.targets]
 
@@ -324,7 +325,7 @@ def run_calibration(calibration_path, out_root, confirm_runs=True):
     from cosim.case import load_calibration
     spec, case_path, confirm_path = load_calibration(calibration_path)
     out_root = Path(out_root)
-    outcome = calibrate(spec, ShearEvaluator(case_path, out_root / "search"), out_root / "evaluations.csv")
+    outcome = calibrate(spec, LabEvaluator(case_path, out_root / "search"), out_root / "evaluations.csv")
     say(f"[calibrate] {outcome.status}: {outcome.message}")
     best = outcome.best
     confirmed = None
@@ -335,7 +336,7 @@ def run_calibration(calibration_path, out_root, confirm_runs=True):
         target_case = confirm_path
     calibrated = None
     if outcome.status == "reached":
-        overrides = ShearEvaluator(target_case, out_root).overrides(best.parameters)
+        overrides = LabEvaluator(target_case, out_root).overrides(best.parameters)
         note = (f"Calibrated by `cosim calibrate {calibration_path}` (see report.md next to this file):\n"
                 + "\n".join(f"  sand {k} = {v!r}" for k, v in best.parameters.items())
                 + f"\nfrom {Path(target_case).resolve()}")

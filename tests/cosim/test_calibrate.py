@@ -172,3 +172,53 @@ def test_calibrating_the_friction_of_a_miniature_shear_box(tmp_path):
     again = json.loads((rerun / "summary.json").read_text())["peak_friction_angle_deg"]
     assert again == row["confirm_case"]  # the calibrated file is the confirmed run, bit for bit
     assert math.isfinite(report["parameters"]["friction"])
+
+
+TRIAXIAL_CALIBRATION = """
+case = "tx.toml"
+budget = 8
+
+[[targets]]
+quantity = "peak_friction_angle_deg"
+value = {target}
+tolerance = 1.0
+normal_stress = 100e3
+
+[[parameters]]
+name = "friction"
+lower = 0.1
+upper = 0.7
+"""
+
+
+def _triaxial_case(tmp_path):
+    spec_ = importlib.util.spec_from_file_location("tx", RUNS.parent / "tests" / "triaxial" / "test_triaxial.py")
+    module = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(module)
+    (tmp_path / "tx.toml").write_text(module.MINI.format(name="tx_calibrate", specimen=module.DENSE, strain=0.06))
+    return tmp_path / "tx.toml"
+
+
+def test_calibrating_against_a_triaxial_target(tmp_path):
+    """The same search on the miniature triaxial cell (6 % axial strain): the target is the
+    cell's own φ_peak at μ = 0.25."""
+    case = _triaxial_case(tmp_path)
+    assert main(["run", str(case), "--out", str(tmp_path / "probe"), "--set", "dem.materials[0].friction=0.25"]) == 0
+    target = json.loads((tmp_path / "probe" / "summary.json").read_text())["peak_friction_angle_deg"]
+    path = tmp_path / "calibration.toml"
+    path.write_text(TRIAXIAL_CALIBRATION.format(target=target))
+    out = tmp_path / "out"
+    assert main(["calibrate", str(path), "--out", str(out)]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "reached" and abs(report["targets"][0]["searched_case"] - target) <= 1.0
+    assert (out / "search" / "001" / "100kPa" / "triaxial.png").exists()
+
+
+def test_a_quantity_the_kind_does_not_measure_is_refused(tmp_path, capsys):
+    case = _triaxial_case(tmp_path)
+    path = tmp_path / "calibration.toml"
+    path.write_text(TRIAXIAL_CALIBRATION.format(target=30.0).replace("peak_friction_angle_deg",
+                                                                      "vertical_displacement_end"))
+    assert main(["check", str(path)]) == 2
+    assert "key 'targets[0].quantity'" in capsys.readouterr().err
+    assert case.exists()
