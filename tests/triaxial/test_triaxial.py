@@ -196,3 +196,8 @@ def test_a_series_over_the_cell_pressure_fits_the_envelope(tmp_path):
     assert float(rows["peak"]["phi_deg"]) == pytest.approx(math.degrees(math.asin(sin_phi)), abs=0.01)
     for name in ("mohr_coulomb.png", "series_curves.png", "mohr_coulomb.md"):
         assert (out / name).exists()
+
+
+def test_the_shipped_case_checks():
+    case, _ = load_case(Path(__file__).resolve().parents[2] / "runs" / "triaxial_small.toml")
+    assert case.case.kind == "triaxial" and case.triaxial.axial_strain >= 0.2
