@@ -1,7 +1,7 @@
 """A corpus of bad inputs, each refused by validation alone with exit 2 and one line that
 names what is wrong.
 
-Every entry starts from a shipped case of one of the four kinds (``runs/*.toml``, copied
+Every entry starts from a shipped case of one of the six kinds (``runs/*.toml``, copied
 into a temporary folder with the packing it uses) and breaks one thing: a value through
 ``--set``, the case text, a packing, a mesh or the output folder. Each entry is checked
 twice, with ``cosim check`` and with ``cosim run``: both must stop in validation with the
@@ -19,7 +19,8 @@ from cosim.cli import main
 
 RUNS = Path(__file__).parents[2] / "runs"
 BASES = {"dem": "demo_dem_settling.toml", "fe": "fe_footing.toml", "shear": "direct_shear_small.toml",
-         "coupled": "coupled_footing_on_sand.toml", "footing": "footing_small.toml"}
+         "coupled": "coupled_footing_on_sand.toml", "footing": "footing_small.toml",
+         "triaxial": "triaxial_small.toml"}
 
 
 @dataclass
@@ -280,6 +281,18 @@ CORPUS = [
     Bad("footing", "does not fit the DEM zone", cut="[specimen]",
         append='\n[specimen]\nsource = "file"\nfile = "packings/sand_bed_30mm.npz"\n',
         label="a packing that does not fit the zone"),
+    # ---------------------------------------------------------------- triaxial (docs/design.md §3.10)
+    Bad("triaxial", "at least 6 of the largest grains", sets=["triaxial.size=0.02"], label="cell under 6 grains"),
+    Bad("triaxial", "lasts until triaxial.axial_strain", sets=["time.steps=100"]),
+    Bad("triaxial", "triaxial.ramp_strain", sets=["triaxial.ramp_strain=0.3"]),
+    Bad("triaxial", "triaxial.axial_strain", sets=["triaxial.axial_strain=0.0"]),
+    Bad("triaxial", "triaxial.cell_pressure", sets=["triaxial.cell_pressure=-100e3"]),
+    Bad("triaxial", "triaxial.wall_material", sets=['triaxial.wall_material="rubber"']),
+    Bad("triaxial", "not used here", sets=["output.interval=0.1"], label="output.interval in a triaxial case"),
+    Bad("triaxial", "does not use [direct_shear]", append="\n[direct_shear]\nbox_length = 0.06\n"),
+    Bad("triaxial", "specimen.deposition_material", sets=['specimen.deposition_material="clay"']),
+    Bad("triaxial", "missing.npz", cut="[specimen]", append='\n[specimen]\nsource = "file"\nfile = "missing.npz"\n',
+        label="triaxial: a packing file that does not exist"),
 ]
 
 
