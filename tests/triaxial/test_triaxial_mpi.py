@@ -1,0 +1,47 @@
+"""The triaxial test with its DEM spread over MPI ranks: the specimen generation, the
+consolidation and the compression run on all ranks; the specimen and the CSV rows (wall
+forces summed over the ranks in the serial order) are bit-identical to one rank."""
+import csv
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).parents[2]
+COSIM = Path(sys.executable).parent / "cosim"
+ENV = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+       "OMPI_MCA_rmaps_base_oversubscribe": "1", "NUMBA_NUM_THREADS": "1"}
+EXACT = ("time", "axial_strain", "volumetric_strain", "sigma_1", "sigma_x", "sigma_y", "void_ratio", "step")
+
+
+def compress(case, out, ranks):
+    cmd = [str(COSIM), "run", str(case), "--out", str(out)]
+    if ranks > 1:
+        cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), *cmd]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=ROOT, timeout=600)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    with open(out / "series.csv") as f:
+        rows = list(csv.DictReader(f))
+    return {k: [r[k] for r in rows] for k in rows[0]}, done.stdout
+
+
+def test_two_ranks_compress_the_one_rank_specimen_bit_for_bit(tmp_path):
+    spec = importlib.util.spec_from_file_location("tx", ROOT / "tests" / "triaxial" / "test_triaxial.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    case = tmp_path / "tx.toml"
+    case.write_text(module.MINI.format(name="tx_ranks", specimen=module.DENSE, strain=0.02))
+    one, _ = compress(case, tmp_path / "one", 1)
+    two, out = compress(case, tmp_path / "two", 2)
+    assert "DEM on 2 MPI ranks" in out
+    for name in ("positions", "radii"):
+        with np.load(tmp_path / "one" / "specimen.npz") as a, np.load(tmp_path / "two" / "specimen.npz") as b:
+            assert np.array_equal(a[name], b[name]), name
+    for key in EXACT:
+        assert one[key] == two[key], key
+    np.testing.assert_allclose(np.array(two["coordination_number"], float), np.array(one["coordination_number"], float),
+                               rtol=1e-9)
+    assert len(one["step"]) >= 10
