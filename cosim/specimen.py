@@ -103,3 +103,41 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
             "void_ratio_within_tolerance": bool(ok), "generation_steps": specimen.steps,
             "generation_wall_clock_s": wall_clock, "generation_log": specimen.log}
     return specimen.positions, specimen.radii, specimen.height, info
+
+
+def read_lab_inputs(case, case_path, length, width):
+    """What a lab test reads before computing (its ``prepare``): the packing file, whose grains
+    must lie in the ``length`` × ``width`` box (overlapping a side by at most 25 % of a radius),
+    or the sieve curve. Returns (built dict, the smallest grain's radius); bad input is a
+    CaseError naming the key."""
+    from cosim.case import resolve_path
+    from cosim.errors import CaseError
+    sp = case.specimen
+    if sp.source == "generate":
+        try:
+            curve = curve_of(sp)
+        except ValueError as exc:
+            raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
+        return {"curve": curve}, 0.5 * float(curve.diameters[0])
+    from cosim.apps.dem import warn_overlaps
+    try:
+        packing = read_specimen(resolve_path(case_path, sp.file))
+    except Exception as exc:
+        raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
+    pos, radii, _, _ = packing
+    slack = 0.25 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
+    if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > (length, width) + slack):
+        raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {length} m x {width} m "
+                        "box (x, y inside it, overlapping a side by at most 25 % of the radius)")
+    warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
+    return {"packing": packing}, float(radii.min())
+
+
+def check_grain_time_step(case, case_path, mats, sand, radius):
+    """A given ``time.dt`` against the critical step of the smallest grain (docs/design.md §2.14)."""
+    if case.time.dt is None:
+        return
+    from cosim.apps.dem import check_time_step
+    from de_domain import Engine, Particles
+    grain = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats)
+    check_time_step(case_path, case.time, Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt))

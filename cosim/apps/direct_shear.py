@@ -53,7 +53,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from cosim.case import resolve_path
 from cosim.errors import CaseError
 from cosim.outputs import (
     CsvSeries,
@@ -66,7 +65,7 @@ from cosim.outputs import (
     say,
     write_run_metadata,
 )
-from cosim.specimen import SpecimenBox, curve_of, read_specimen
+from cosim.specimen import SpecimenBox, check_grain_time_step, read_lab_inputs
 from cosim.specimen import make_specimen as generated_specimen
 
 CHECKPOINT = "checkpoint.npz"
@@ -97,46 +96,16 @@ def prepare(case, case_path, out_dir, resume):
     given time step against the critical step of the smallest grain. None elsewhere."""
     if not is_root():
         return None
-    sp, ds = case.specimen, case.direct_shear
+    ds = case.direct_shear
     out_dir = Path(out_dir)
     if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / SHEAR_STATE).exists()):
         raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
                         "no shear checkpoint in the output folder (checkpoints start with the shearing); "
                         "run without --resume")
-    built = {}
-    if sp.source == "file":
-        from cosim.apps.dem import warn_overlaps
-        try:
-            built["packing"] = read_specimen(resolve_path(case_path, sp.file))
-        except Exception as exc:
-            raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
-        pos, radii, _, _ = built["packing"]
-        L = ds.box_length
-        slack = 0.25 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
-        if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > L + slack):
-            raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {L} m x {L} m box "
-                            "(x, y in [0, L], overlapping a side by at most 25 % of the radius)")
-        warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
-        r_min = float(radii.min())
-    else:
-        try:
-            built["curve"] = curve_of(sp)
-        except ValueError as exc:
-            raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
-        r_min = 0.5 * float(built["curve"].diameters[0])
-    if case.time.dt is not None:
-        from cosim.apps.dem import check_time_step
-        check_time_step(case_path, case.time, _one_grain(case, r_min))
-    return built
-
-
-def _one_grain(case, radius):
-    """An engine holding one sand grain of ``radius``: its critical step is the specimen's
-    smallest (docs/design.md §2.14)."""
-    from de_domain import Engine, Particles
+    built, r_min = read_lab_inputs(case, case_path, ds.box_length, ds.box_length)
     mats, sand, _, _ = materials(case)
-    grain = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats)
-    return Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt)
+    check_grain_time_step(case, case_path, mats, sand, r_min)
+    return built
 
 
 # --------------------------------------------------------------------------- 1. specimen

@@ -46,7 +46,6 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.case import resolve_path
 from cosim.errors import CaseError
 from cosim.outputs import (
     CsvSeries,
@@ -59,7 +58,7 @@ from cosim.outputs import (
     say,
     write_run_metadata,
 )
-from cosim.specimen import SpecimenBox, curve_of, read_specimen
+from cosim.specimen import SpecimenBox, check_grain_time_step, read_lab_inputs
 from cosim.specimen import make_specimen as generated_specimen
 
 CHECKPOINT = "checkpoint.npz"
@@ -87,37 +86,15 @@ def prepare(case, case_path, out_dir, resume):
     packing file or the sieve curve, a given dt against the smallest grain's critical step."""
     if not is_root():
         return None
-    sp, tx = case.specimen, case.triaxial
+    tx = case.triaxial
     out_dir = Path(out_dir)
     if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / STATE).exists()):
         raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
                         "no triaxial checkpoint in the output folder (checkpoints start with the compression); "
                         "run without --resume")
-    built = {}
-    if sp.source == "file":
-        try:
-            built["packing"] = read_specimen(resolve_path(case_path, sp.file))
-        except Exception as exc:
-            raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
-        pos, radii, height, _ = built["packing"]
-        L = tx.size
-        if np.any(pos[:, :2] - radii[:, None] < -0.25 * radii[:, None]) or \
-                np.any(pos[:, :2] + radii[:, None] > L + 0.25 * radii[:, None]):
-            raise CaseError(case_path, "specimen.file", sp.file,
-                            f"the grains must lie inside the {L} m x {L} m cell (x, y in [0, triaxial.size])")
-        r_min = float(radii.min())
-    else:
-        try:
-            built["curve"] = curve_of(sp)
-        except ValueError as exc:
-            raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
-        r_min = 0.5 * float(built["curve"].diameters[0])
-    if case.time.dt is not None:
-        from cosim.apps.dem import check_time_step
-        from de_domain import Engine, Particles
-        mats, sand, _, _ = materials(case)
-        grain = Particles.from_spheres(np.zeros((1, 3)), [r_min], np.full(1, sand, np.int32), mats)
-        check_time_step(case_path, case.time, Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt))
+    built, r_min = read_lab_inputs(case, case_path, tx.size, tx.size)
+    mats, sand, _, _ = materials(case)
+    check_grain_time_step(case, case_path, mats, sand, r_min)
     return built
 
 

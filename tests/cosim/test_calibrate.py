@@ -127,15 +127,15 @@ def test_the_shipped_calibration_file_checks():
     assert main(["check", str(RUNS / "calibrate_thesis.toml")]) == 0
 
 
-MINI_CALIBRATION = """
-case = "mini.toml"
-confirm_case = "mini.toml"
+CALIBRATION = """
+case = "{case}"
+{confirm}
 budget = 8
 
 [[targets]]
 quantity = "peak_friction_angle_deg"
 value = {target}
-tolerance = 1.5
+tolerance = {tolerance}
 normal_stress = 100e3
 
 [[parameters]]
@@ -158,7 +158,8 @@ def test_calibrating_the_friction_of_a_miniature_shear_box(tmp_path):
                  "--set", "dem.materials[0].friction=0.25"]) == 0
     target = json.loads((probe / "summary.json").read_text())["peak_friction_angle_deg"]
     path = tmp_path / "calibration.toml"
-    path.write_text(MINI_CALIBRATION.format(target=target))
+    path.write_text(CALIBRATION.format(case="mini.toml", confirm='confirm_case = "mini.toml"', target=target,
+                                      tolerance=1.5))
     out = tmp_path / "out"
     assert main(["calibrate", str(path), "--out", str(out)]) == 0
     report = json.loads((out / "report.json").read_text())
@@ -174,21 +175,6 @@ def test_calibrating_the_friction_of_a_miniature_shear_box(tmp_path):
     assert math.isfinite(report["parameters"]["friction"])
 
 
-TRIAXIAL_CALIBRATION = """
-case = "tx.toml"
-budget = 8
-
-[[targets]]
-quantity = "peak_friction_angle_deg"
-value = {target}
-tolerance = 1.0
-normal_stress = 100e3
-
-[[parameters]]
-name = "friction"
-lower = 0.1
-upper = 0.7
-"""
 
 
 def _triaxial_case(tmp_path):
@@ -206,7 +192,7 @@ def test_calibrating_against_a_triaxial_target(tmp_path):
     assert main(["run", str(case), "--out", str(tmp_path / "probe"), "--set", "dem.materials[0].friction=0.25"]) == 0
     target = json.loads((tmp_path / "probe" / "summary.json").read_text())["peak_friction_angle_deg"]
     path = tmp_path / "calibration.toml"
-    path.write_text(TRIAXIAL_CALIBRATION.format(target=target))
+    path.write_text(CALIBRATION.format(case="tx.toml", confirm="", target=target, tolerance=1.0))
     out = tmp_path / "out"
     assert main(["calibrate", str(path), "--out", str(out)]) == 0
     report = json.loads((out / "report.json").read_text())
@@ -217,8 +203,8 @@ def test_calibrating_against_a_triaxial_target(tmp_path):
 def test_a_quantity_the_kind_does_not_measure_is_refused(tmp_path, capsys):
     case = _triaxial_case(tmp_path)
     path = tmp_path / "calibration.toml"
-    path.write_text(TRIAXIAL_CALIBRATION.format(target=30.0).replace("peak_friction_angle_deg",
-                                                                      "vertical_displacement_end"))
+    path.write_text(CALIBRATION.format(case="tx.toml", confirm="", target=30.0, tolerance=1.0)
+                    .replace("peak_friction_angle_deg", "vertical_displacement_end"))
     assert main(["check", str(path)]) == 2
     assert "key 'targets[0].quantity'" in capsys.readouterr().err
     assert case.exists()
