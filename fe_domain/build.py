@@ -33,22 +33,23 @@ from fe_domain.boundary import (
     ramp,
 )
 from fe_domain.explicit import DEFAULT_ALPHA_TAU, ExplicitSolid
-from fe_domain.mesh import load_mesh
+from fe_domain.mesh import TaggedMesh, load_mesh
 
 DAMPING_LAWS = {"local": LocalNonViscousDamping, "mass": MassProportionalDamping}
 
 
-def build_solid(mesh: str, mesh_size: float | None = None, *, material: dict,
+def build_solid(mesh: str | TaggedMesh, mesh_size: float | None = None, *, material: dict,
                 boundary_conditions: list[dict] = (), loads: list[dict] = (),
                 damping: dict | None = None, formulation: str = "mixed",
                 alpha_tau: float = DEFAULT_ALPHA_TAU, safety_factor: float = 0.5,
                 geometry_parameters: dict[str, float] | None = None,
                 comm: MPI.Comm = MPI.COMM_WORLD) -> ExplicitSolid:
-    """Mesh ``mesh`` (.geo with ``mesh_size``, or .msh) and build the solver; see module docstring."""
+    """Mesh ``mesh`` (.geo with ``mesh_size``, or .msh; or take an already made TaggedMesh) and
+    build the solver; see module docstring."""
     records = dict(boundary_conditions=[_boundary_condition(i, bc) for i, bc in enumerate(boundary_conditions)],
                    loads=[_load(i, load) for i, load in enumerate(loads)], damping=_damping(damping))
     solid_material = _material(material)            # tables are checked before meshing
-    tagged = load_mesh(mesh, mesh_size, comm, geometry_parameters)
+    tagged = mesh if isinstance(mesh, TaggedMesh) else load_mesh(mesh, mesh_size, comm, geometry_parameters)
     return ExplicitSolid(tagged, solid_material, formulation=formulation, alpha_tau=alpha_tau,
                          safety_factor=safety_factor, **records)
 

@@ -136,7 +136,21 @@ def prepare(case, case_path, out_dir, resume):
     if resume:
         raise CaseError(case_path, "--resume", "--resume",
                         "a footing run cannot resume yet; run it again without --resume")
-    return mpi_comm().bcast(on_root(mpi_comm(), lambda: _read_inputs(case, case_path)), root=0)
+    built = mpi_comm().bcast(on_root(mpi_comm(), lambda: _read_inputs(case, case_path)), root=0)
+    if case.footing.model == "coupled":
+        built["soil_mesh"] = soil_mesh(case, case_path)  # collective: cosim check meshes the block too
+    return built
+
+
+def soil_mesh(case, case_path):
+    """The FE soil block's mesh (meshes/trench.geo with the case's sizes), made once, before
+    any computation; a block gmsh cannot mesh is a CaseError on every rank."""
+    from fe_domain.mesh import MeshError, load_mesh
+    try:
+        return load_mesh("trench.geo", case.soil.mesh_size, mpi_comm(), Geometry.of(case).mesh_parameters(case.soil))
+    except MeshError as exc:
+        raise CaseError(case_path, "soil.mesh_size", case.soil.mesh_size,
+                        f"gmsh could not mesh the soil block with its trench (meshes/trench.geo): {exc}") from None
 
 
 def _read_inputs(case, case_path):
@@ -208,9 +222,10 @@ class Model:
         return float(sum_in_rank_order(mpi_comm(), mass)[0]) * float(np.linalg.norm(self.engine.gravity))
 
 
-def build_model(case, grains, height):
+def build_model(case, grains, height, mesh=None):
     """The model ``footing.model`` of the case with the specimen ``grains`` = (positions,
-    radii) of height ``height`` (generation-box coordinates); collective."""
+    radii) of height ``height`` (generation-box coordinates), and for the coupled model the
+    soil ``mesh`` (:func:`soil_mesh`; made here if None); collective."""
     from de_domain import Engine, Particles, PlaneWall
     geometry = Geometry.of(case)
     model = case.footing.model
@@ -233,7 +248,7 @@ def build_model(case, grains, height):
         engine = Engine(particles, mats, walls=walls, facets=[footing], **engine_args)
         return Model(model, engine, footing, surface)
     density = soil_density(case, radii, geometry.zone_width * geometry.thickness * height)
-    solid, interface = build_soil(case, geometry, ids["interface"], density)
+    solid, interface = build_soil(case, geometry, ids["interface"], density, mesh)
     engine = Engine(particles, mats, walls=walls, facets=[footing, interface.facets], **engine_args)
     from cosim.apps.coupled import time_steps
     fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, case.zone.subcycles)
@@ -250,9 +265,9 @@ def soil_density(case, radii, volume):
     return sand.density * float(np.sum(4.0 / 3.0 * np.pi * radii**3)) / volume
 
 
-def build_soil(case, geometry, interface_material, density):
-    """The FE soil block with its trench (meshes/trench.geo), of ``density`` (kg/m³), and the
-    interface on the trench's faces; collective."""
+def build_soil(case, geometry, interface_material, density, mesh=None):
+    """The FE soil block with its trench (``mesh``, or meshes/trench.geo meshed here), of
+    ``density`` (kg/m³), and the interface on the trench's faces; collective."""
     from cosim.interface import Interface
     from fe_domain.build import build_solid
     from fe_domain.explicit import stable_alpha_tau
@@ -260,7 +275,7 @@ def build_soil(case, geometry, interface_material, density):
     rollers = [{"type": "fixed", "boundary": "bottom"},
                {"type": "fixed", "boundary": "sides_x", "components": [0]},
                {"type": "fixed", "boundary": "sides_y", "components": [1]}]
-    solid = build_solid("trench.geo", soil.mesh_size,
+    solid = build_solid(mesh if mesh is not None else "trench.geo", soil.mesh_size,
                         material={"E": soil.E, "nu": soil.nu, "rho": density},
                         boundary_conditions=rollers,
                         loads=[{"type": "body_force", "acceleration": list(case.dem.gravity)}],
@@ -287,7 +302,7 @@ def run(prepared):
     clock["specimen_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    model = build_model(case, grains, height)
+    model = build_model(case, grains, height, prepared.built.get("soil_mesh"))
     clock["build_s"] = time.perf_counter() - t0
     n_grains = len(grains[1])
     n_cells = _cells(model.solid) if model.solid is not None else 0  # collective
