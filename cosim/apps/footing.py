@@ -54,6 +54,7 @@ from cosim.outputs import (
     atomic_write_text,
     is_root,
     mpi_comm,
+    save_engine_checkpoint,
     say,
     write_run_metadata,
 )
@@ -65,6 +66,8 @@ COLUMNS = ["time", "settlement", "settlement_ratio", "footing_force_z", "bearing
 REST_COLUMNS = ["time", "interface_force_z", "grain_weight", "unbalanced_force_ratio"]
 REST_CHECK_TIME = 2e-3  # s of simulated time between the rest checks
 FRAMES = 5  # ParaView frames over the loading
+STATE = "footing_state.json"  # the loading loop's state at the last checkpoint (with checkpoint.npz)
+LOADING_START = "loading_start.npz"  # every grain's position when the loading began
 RELEASE_FRACTION = 0.02  # the generation plate is raised until it carries this x the self-weight stress at the bottom
 
 
@@ -133,9 +136,12 @@ def prepare(case, case_path, out_dir, resume):
     """Every input check before any computation (rank 0 reads, every rank raises the same
     CaseError): the packing against the zone or block, or the sieve curve."""
     from cosim.apps import on_root
-    if resume:
-        raise CaseError(case_path, "--resume", "--resume",
-                        "a footing run cannot resume yet; run it again without --resume")
+    model_dir = Path(out_dir) / case.footing.model
+    found = (model_dir / STATE).exists() and (model_dir / "checkpoint.npz").exists()
+    if resume and not mpi_comm().allreduce(int(found)):
+        raise CaseError(case_path, "--resume", str(model_dir / "checkpoint.npz"),
+                        "no footing checkpoint in the output folder (checkpoints start with the loading); "
+                        "run without --resume")
     built = mpi_comm().bcast(on_root(mpi_comm(), lambda: _read_inputs(case, case_path)), root=0)
     if case.footing.model == "coupled":
         built["soil_mesh"] = soil_mesh(case, case_path)  # collective: cosim check meshes the block too
@@ -193,6 +199,7 @@ class Model:
     solid: object = None
     interface: object = None
     subcycles: int = 1
+    soil_density: float = None  # kg/m³ of the FE soil (coupled)
 
     @property
     def time(self):
@@ -253,7 +260,7 @@ def build_model(case, grains, height, mesh=None):
     from cosim.apps.coupled import time_steps
     fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, case.zone.subcycles)
     solid.dt, engine.dt = fe_dt, dem_dt
-    return Model(model, engine, footing, surface, solid, interface, n_sub)
+    return Model(model, engine, footing, surface, solid, interface, n_sub, density)
 
 
 def soil_density(case, radii, volume):
@@ -297,28 +304,34 @@ def run(prepared):
     name = f"{case.case.name}/{case.footing.model}"
     clock = {}
 
-    t0 = time.perf_counter()
-    grains, height, specimen_info = _specimen(case, prepared.built, out_dir, name)
-    clock["specimen_s"] = time.perf_counter() - t0
+    if prepared.resume:
+        state = json.loads((out_dir / STATE).read_text())
+        model = resumed_model(case, prepared.case_path, out_dir, prepared.built, state)
+        say(f"[{name}] resumed the loading at row {state['row']} (t = {model.time:.4e} s)")
+    else:
+        t0 = time.perf_counter()
+        grains, height, specimen_info = _specimen(case, prepared.built, out_dir, name)
+        clock["specimen_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        model = build_model(case, grains, height, prepared.built.get("soil_mesh"))
+        clock["build_s"] = time.perf_counter() - t0
+        n_cells = _cells(model.solid) if model.solid is not None else 0  # collective
+        say(f"[{name}] {len(grains[1])} grains, DEM dt = {model.engine.dt:.3e} s"
+            + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
+               f"{n_cells} tetrahedra, {len(model.interface.facets.triangles)} interface facets"
+               if model.solid is not None else "")
+            + (f", on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
+        t0 = time.perf_counter()
+        rest = come_to_rest(case, model, out_dir, name)
+        clock["rest_s"] = time.perf_counter() - t0
+        state = {"specimen_info": specimen_info, "rest": rest, "clock": clock, "grains": len(grains[1]),
+                 "cells": n_cells, "surface": model.surface, "soil_density": model.soil_density, "row": 0,
+                 "loading_before_s": 0.0}
 
     t0 = time.perf_counter()
-    model = build_model(case, grains, height, prepared.built.get("soil_mesh"))
-    clock["build_s"] = time.perf_counter() - t0
-    n_grains = len(grains[1])
-    n_cells = _cells(model.solid) if model.solid is not None else 0  # collective
-    say(f"[{name}] {n_grains} grains, DEM dt = {model.engine.dt:.3e} s"
-        + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
-           f"{n_cells} tetrahedra, {len(model.interface.facets.triangles)} interface facets"
-           if model.solid is not None else "")
-        + (f", on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
-
-    t0 = time.perf_counter()
-    rest = come_to_rest(case, model, out_dir, name)
-    clock["rest_s"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    series = load(case, model, out_dir, name)
-    clock["loading_s"] = time.perf_counter() - t0
+    series = load(case, model, out_dir, name, state, prepared.resume)
+    clock = {**state["clock"], "loading_s": state["loading_before_s"] + time.perf_counter() - t0}
+    specimen_info, rest, n_grains, n_cells = (state[k] for k in ("specimen_info", "rest", "grains", "cells"))
 
     if is_root():
         summary = _summary(case, model, n_grains, n_cells, specimen_info, rest, series, clock)
@@ -409,9 +422,11 @@ def come_to_rest(case, model, out_dir, name):
             "interface_force_over_weight": balance}
 
 
-def load(case, model, out_dir, name):
+def load(case, model, out_dir, name, state, resume=False):
     """Push the footing down at footing.velocity to the final settlement; series.csv rows;
-    returns the series as a dict of arrays (rank 0) or None."""
+    a checkpoint every output.checkpoint_interval (after a row), from which ``resume``
+    continues; returns the series as a dict of arrays (rank 0) or None."""
+    from cosim.lab.shear_report import read_series
     from de_domain.io import write_frame
     from fe_domain.output import FieldWriter
     ft = case.footing
@@ -419,21 +434,33 @@ def load(case, model, out_dir, name):
     final = ft.settlement * B
     row_time = final / ft.rows / ft.velocity
     footing = model.footing
-    start_grains = model.engine.global_particles()  # collective
-    z0 = surface_under(footing, start_grains)
-    footing.vertices[:, 2] = z0  # on the highest grain under it: s = 0 at the first contact
-    footing.velocity = np.array([0.0, 0.0, -ft.velocity])
-    footing.reset_impulse()
-    start_grains = start_grains.pos.copy()
-    rows = CsvSeries(out_dir / "series.csv", COLUMNS) if is_root() else None
-    frames = PvdCollection(out_dir / "particles.pvd") if is_root() and case.output.vtk else None
-    fields = FieldWriter(model.solid, out_dir / "fields", extra_fields=[model.interface.traction_field]) \
-        if model.solid is not None else None
-    progress = ProgressLine(name, ft.rows, case.output.progress_interval)
+    start_path = out_dir / LOADING_START
+    if resume:
+        z0, first_row = state["z0"], state["row"] + 1
+        start_grains = np.load(start_path)["position"] if is_root() else None
+    else:
+        grains = model.engine.global_particles()  # collective
+        z0, first_row = surface_under(footing, grains), 1
+        footing.vertices[:, 2] = z0  # on the highest grain under it: s = 0 at the first contact
+        footing.velocity = np.array([0.0, 0.0, -ft.velocity])
+        footing.reset_impulse()
+        start_grains = grains.pos.copy()
+        if is_root():
+            tmp = start_path.with_name(start_path.stem + ".tmp.npz")
+            np.savez(tmp, position=start_grains)
+            tmp.replace(start_path)
+    resume_time = model.time if resume else None
+    rows = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
+    fields = None
+    if model.solid is not None:
+        stem = f"fields_from_step{model.solid.step_count}" if resume else "fields"
+        fields = FieldWriter(model.solid, out_dir / stem, extra_fields=[model.interface.traction_field])
+    progress = ProgressLine(name, ft.rows, case.output.progress_interval, first_step=first_row - 1)
     frame_every = max(1, ft.rows // FRAMES)
     t_last = model.time
-    data = []
-    for k in range(1, ft.rows + 1):
+    t_entry = last_checkpoint = time.perf_counter()
+    for k in range(first_row, ft.rows + 1):
         model.advance(row_time)
         elapsed = model.time - t_last
         t_last = model.time
@@ -442,7 +469,6 @@ def load(case, model, out_dir, name):
         settlement = z0 - float(footing.vertices[:, 2].mean())
         row = [model.time, settlement, settlement / B, force[2], force[2] / (B * ly), model.interface_force()[2],
                _unbalanced(model), model.engine.step_count]
-        data.append(row)
         if rows is not None:
             rows.append(row)
         if k % frame_every == 0 or k == ft.rows:
@@ -452,6 +478,12 @@ def load(case, model, out_dir, name):
             if fields is not None:
                 fields.write()
         progress.update(k, model.time)
+        due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
+        if k < ft.rows and mpi_comm().bcast(due, root=0):  # rank 0's clock decides for all
+            now = time.perf_counter()
+            _save_checkpoint(out_dir, model, {**state, "row": k, "z0": z0,
+                                              "loading_before_s": state["loading_before_s"] + now - t_entry})
+            last_checkpoint = now
     progress.update(ft.rows, model.time, force=True)
     footing.velocity = np.zeros(3)
     grains = model.engine.global_particles()  # collective
@@ -464,7 +496,49 @@ def load(case, model, out_dir, name):
         return None
     rows.close()
     plot_displacement_section(case, model, start_grains, grains, out_dir / "displacement_section.png")
-    return {c: np.array([r[i] for r in data]) for i, c in enumerate(COLUMNS)}
+    return read_series(out_dir / "series.csv")
+
+
+def _save_checkpoint(out_dir, model, state):
+    """The DEM (and, coupled, the FE with the impulse in transit: ``coupled.save_checkpoint``)
+    and the loading loop's ``state`` (JSON, rank 0), each to a temporary file, then renamed;
+    collective."""
+    from cosim.apps import coupled as coupled_app
+    if model.solid is not None:
+        coupled_app.save_checkpoint(out_dir, model.solid, model.engine, model.interface)
+    else:
+        save_engine_checkpoint(model.engine, out_dir / "checkpoint.npz")
+    if is_root():
+        atomic_write_text(out_dir / STATE, json.dumps({**state, "step": model.engine.step_count}, indent=1))
+
+
+def resumed_model(case, case_path, out_dir, built, state):
+    """The model at the last checkpoint of the loading: the DEM engine (grains, walls, footing,
+    interface facets with their impulse) and, coupled, the FE soil on the prepared mesh with its
+    state and the interface force in transit; collective."""
+    from cosim.apps import coupled as coupled_app
+    from cosim.apps import dem as dem_app
+    from cosim.apps import fe as fe_app
+    comm = mpi_comm()
+    engine = dem_app.load_checkpoint(case_path, out_dir / "checkpoint.npz", comm if comm.size > 1 else None)
+    if engine.step_count != state["step"]:
+        raise CaseError(out_dir / STATE, "step", state["step"],
+                        f"does not match the checkpoint (step {engine.step_count}); run without --resume")
+    if case.footing.model == "dem":
+        return Model("dem", engine, engine.facets[0], state["surface"])
+    _, ids = _material_ids(case)
+    solid, interface = build_soil(case, Geometry.of(case), ids["interface"], state["soil_density"],
+                                  built["soil_mesh"])
+    fe_state = fe_app.restore_checkpoint(solid, case_path, out_dir, coupled_app.FE_CHECKPOINT_STEM)
+    if abs(engine.time - solid.time) > 0.5 * engine.dt:  # killed between the renames
+        raise CaseError(case_path, "--resume", str(out_dir / "checkpoint.npz"),
+                        "the DEM and FE checkpoints are of different instants; run without --resume")
+    if "interface_held" in fe_state:
+        interface.held = fe_state["interface_held"].copy()
+    interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_model)
+    interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
+    return Model("coupled", engine, engine.facets[0], state["surface"], solid, interface,
+                 int(round(solid.dt / engine.dt)), state["soil_density"])
 
 
 def surface_under(footing, grains):

@@ -184,6 +184,35 @@ def _file_case(tmp_path, packing):
     return path
 
 
-def test_resume_is_refused_with_one_message(tmp_path):
+def test_resume_without_a_checkpoint_is_one_message(tmp_path):
     res = cosim("run", str(CASE), "--resume", "--out", str(tmp_path / "x"), *overrides())
-    assert res.returncode == 2 and "cannot resume" in res.stderr
+    assert res.returncode == 2 and "no footing checkpoint" in res.stderr
+
+
+def test_a_killed_coupled_loading_resumes_to_the_same_rows(runs, tmp_path):
+    """The coupled tiny case, killed during the loading (a checkpoint after every row), resumes
+    from its DEM and FE checkpoints to the rows of the uninterrupted run, to the last digit."""
+    import subprocess as sp
+    import time
+    out = tmp_path / "split"
+    sets = overrides({"footing.model": "coupled"}) + ["--set", "output.checkpoint_interval=0.05"]
+    proc = sp.Popen([str(COSIM), "run", str(CASE), "--out", str(out), *sets], stdout=sp.DEVNULL, stderr=sp.DEVNULL,
+                    env=ENV, cwd=ROOT)
+    series = out / "coupled" / "series.csv"
+    deadline = time.time() + 600
+    while time.time() < deadline and proc.poll() is None:
+        if (out / "coupled" / "footing_state.json").exists() and series.exists() and \
+                len(series.read_text().splitlines()) > 4:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    proc.kill()
+    proc.wait()
+    assert not (out / "coupled" / "summary.json").exists()
+    res = cosim("run", str(CASE), "--out", str(out), *sets, "--resume")
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert "resumed the loading at row" in res.stdout
+    assert series.read_text() == (runs / "coupled" / "series.csv").read_text()
+    summary = json.loads((out / "coupled" / "summary.json").read_text())
+    assert summary["bearing_pressure_at"] == json.loads((runs / "coupled" / "summary.json").read_text())[
+        "bearing_pressure_at"]
