@@ -86,6 +86,28 @@ def save_engine_checkpoint(engine, path):
         engine.domain.comm.Barrier()
 
 
+def save_lab_checkpoint(out_dir, engine, state_name, state):
+    """A lab test's checkpoint: the engine (``checkpoint.npz``, collective) and its loop and
+    servo ``state`` (JSON ``state_name``, rank 0), naming the step it belongs to; each written
+    to a temporary file and renamed."""
+    save_engine_checkpoint(engine, Path(out_dir) / "checkpoint.npz")
+    if is_root():
+        state = {**state, "step": engine.step_count}
+        atomic_write_text(Path(out_dir) / state_name, json.dumps(state, default=lambda x: x.item()))
+
+
+def load_lab_checkpoint(out_dir, state_name, comm=None):
+    """(engine, state) of :func:`save_lab_checkpoint`; a state of another step is a CaseError."""
+    from cosim.errors import CaseError
+    from de_domain import Engine
+    engine = Engine.load_checkpoint(Path(out_dir) / "checkpoint.npz", comm=comm)
+    state = json.loads((Path(out_dir) / state_name).read_text())
+    if state["step"] != engine.step_count:
+        raise CaseError(Path(out_dir) / state_name, "step", state["step"],
+                        f"does not match the checkpoint (step {engine.step_count}); run without --resume")
+    return engine, state
+
+
 def write_run_metadata(out_dir, case_path, resolved, seed):
     """Write ``case.resolved.toml`` (re-runnable) and ``run_info.json`` next to the outputs.
 

@@ -141,3 +141,15 @@ def check_grain_time_step(case, case_path, mats, sand, radius):
     from de_domain import Engine, Particles
     grain = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats)
     check_time_step(case_path, case.time, Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt))
+
+
+def lab_specimen(case, built, box: SpecimenBox, out_dir, cache=None, comm=None):
+    """A lab test's specimen (direct_shear, triaxial): the packing file read by
+    :func:`read_lab_inputs` (unless ``cache`` exists), or generated in ``box``
+    (:func:`make_specimen`); returns (positions, radii, height, info); collective with ``comm``."""
+    sp = case.specimen
+    if sp.source == "file" and not (cache is not None and Path(cache).exists()):
+        pos, radii, height, e = built["packing"]
+        say(f"[{case.case.name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
+        return pos, radii, height, {"source": sp.file, "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
+    return make_specimen(case, box, built.get("curve"), out_dir, cache, comm)

@@ -163,11 +163,20 @@ def build_engine(case_path, case, built, extra_facets=(), comm=None):
         raise CaseError(case_path, "dem", "[dem]", str(exc)) from None
 
 
+def materials_of(dem, *names):
+    """The de_domain Materials of [[dem.materials]] in their order (a material's id is its
+    index), followed by the ids of the given material ``names``."""
+    from de_domain import Material
+    materials = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in dem.materials]
+    order = [m.name for m in dem.materials]
+    return (materials, *(order.index(n) for n in names))
+
+
 def _engine(case, built, extra_facets, comm=None):
-    from de_domain import Engine, Material, Particles, PlaneWall
+    from de_domain import Engine, Particles, PlaneWall
     dem = case.dem
     names = [m.name for m in dem.materials]
-    materials = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in dem.materials]
+    materials = materials_of(dem)[0]
     mat_ids = np.full(len(built["radii"]), names.index(dem.particles.material), np.int32)
     velocities = np.tile(np.asarray(dem.particles.velocity, float), (len(built["radii"]), 1))
     particles = Particles.from_spheres(built["positions"], built["radii"], mat_ids, materials, velocities=velocities)

@@ -59,14 +59,14 @@ from cosim.outputs import (
     ProgressLine,
     atomic_write_text,
     is_root,
+    load_lab_checkpoint,
     mpi_comm,
     particle_frames,
-    save_engine_checkpoint,
+    save_lab_checkpoint,
     say,
     write_run_metadata,
 )
-from cosim.specimen import SpecimenBox, check_grain_time_step, read_lab_inputs
-from cosim.specimen import make_specimen as generated_specimen
+from cosim.specimen import SpecimenBox, check_grain_time_step, lab_specimen, read_lab_inputs
 
 CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
@@ -83,11 +83,9 @@ COLUMNS = ["time", "shear_displacement", "shear_stress", "normal_stress", "verti
 def materials(case):
     """de_domain Materials from [dem.materials] (as the ``dem`` app) and the ids of the
     grains, side walls and plates."""
-    from de_domain import Material
-    names = [m.name for m in case.dem.materials]
-    mats = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in case.dem.materials]
+    from cosim.apps.dem import materials_of
     ds = case.direct_shear
-    return mats, names.index(ds.sand_material), names.index(ds.side_wall_material), names.index(ds.plate_material)
+    return materials_of(case.dem, ds.sand_material, ds.side_wall_material, ds.plate_material)
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -112,14 +110,9 @@ def prepare(case, case_path, out_dir, resume):
 def make_specimen(case, built, out_dir, cache=None, comm=None):
     """Load or generate the specimen in the L × L shear box (cosim.specimen.make_specimen);
     returns (positions, radii, height, info dict); collective with ``comm``."""
-    sp, ds = case.specimen, case.direct_shear
-    if sp.source == "file" and not (cache is not None and Path(cache).exists()):
-        pos, radii, height, e = built["packing"]
-        say(f"[{case.case.name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
-        return pos, radii, height, {"source": sp.file, "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
-    mats, sand, wall, plate = materials(case)
-    box = SpecimenBox(ds.box_length, ds.box_length, ds.sample_height, mats, sand, wall, plate)
-    return generated_specimen(case, box, built.get("curve"), out_dir, cache, comm)
+    ds = case.direct_shear
+    box = SpecimenBox(ds.box_length, ds.box_length, ds.sample_height, *materials(case))
+    return lab_specimen(case, built, box, out_dir, cache, comm)
 
 
 # --------------------------------------------------------------------------- 2. shear box
@@ -299,19 +292,12 @@ def _save_checkpoint(out_dir, test, loop):
     """Engine checkpoint + the servo and loop state (JSON), both written to temporary
     files and renamed; the JSON names the step it belongs to."""
     state = {**{k: getattr(test, k) for k in ShearTest.SERVO_STATE}, **loop,
-             "x0": test.x0.tolist(), "height0": test.height0, "step": test.engine.step_count}
-    save_engine_checkpoint(test.engine, out_dir / CHECKPOINT)  # collective when distributed
-    if is_root():
-        atomic_write_text(out_dir / SHEAR_STATE, json.dumps(state, default=lambda x: x.item()))
+             "x0": test.x0.tolist(), "height0": test.height0}
+    save_lab_checkpoint(out_dir, test.engine, SHEAR_STATE, state)  # collective when distributed
 
 
 def _load_checkpoint(case, out_dir, comm=None):
-    from de_domain import Engine
-    engine = Engine.load_checkpoint(out_dir / CHECKPOINT, comm=comm)
-    state = json.loads((out_dir / SHEAR_STATE).read_text())
-    if state["step"] != engine.step_count:
-        raise CaseError(out_dir / SHEAR_STATE, "step", state["step"],
-                        f"does not match the checkpoint (step {engine.step_count}); run without --resume")
+    engine, state = load_lab_checkpoint(out_dir, SHEAR_STATE, comm)
     test = ShearTest(case, engine, state["height0"], state["x0"])
     for k in ShearTest.SERVO_STATE:
         setattr(test, k, state[k])

@@ -124,12 +124,12 @@ def footing_plate(geometry, z, material):
 
 # --------------------------------------------------------------------------- inputs
 def _material_ids(case):
-    from de_domain import Material
-    names = [m.name for m in case.dem.materials]
-    mats = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in case.dem.materials]
+    from cosim.apps.dem import materials_of
     ft = case.footing
-    return mats, {"sand": names.index(ft.sand_material), "side_wall": names.index(ft.side_wall_material),
-                  "footing": names.index(ft.material), "interface": names.index(case.zone.interface_material)}
+    roles = {"sand": ft.sand_material, "side_wall": ft.side_wall_material, "footing": ft.material,
+             "interface": case.zone.interface_material}
+    mats, *ids = materials_of(case.dem, *roles.values())
+    return mats, dict(zip(roles, ids, strict=True))
 
 
 def prepare(case, case_path, out_dir, resume):

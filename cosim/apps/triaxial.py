@@ -52,14 +52,14 @@ from cosim.outputs import (
     ProgressLine,
     atomic_write_text,
     is_root,
+    load_lab_checkpoint,
     mpi_comm,
     particle_frames,
-    save_engine_checkpoint,
+    save_lab_checkpoint,
     say,
     write_run_metadata,
 )
-from cosim.specimen import SpecimenBox, check_grain_time_step, read_lab_inputs
-from cosim.specimen import make_specimen as generated_specimen
+from cosim.specimen import SpecimenBox, check_grain_time_step, lab_specimen, read_lab_inputs
 
 CHECKPOINT = "checkpoint.npz"
 STATE = "triaxial_state.json"
@@ -74,11 +74,9 @@ COLUMNS = ["time", "axial_strain", "volumetric_strain", "sigma_1", "sigma_x", "s
 def materials(case):
     """de_domain Materials from [dem.materials] and the ids of the grains, the walls and
     the generation plate."""
-    from de_domain import Material
-    names = [m.name for m in case.dem.materials]
-    mats = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in case.dem.materials]
+    from cosim.apps.dem import materials_of
     tx = case.triaxial
-    return mats, names.index(tx.sand_material), names.index(tx.wall_material), names.index(tx.plate_material)
+    return materials_of(case.dem, tx.sand_material, tx.wall_material, tx.plate_material)
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -101,14 +99,8 @@ def prepare(case, case_path, out_dir, resume):
 def make_specimen(case, built, out_dir, cache=None, comm=None):
     """The specimen in the L × L cell, generated to the height L or read from its file;
     returns (positions, radii, height, info); collective with ``comm``."""
-    sp, tx = case.specimen, case.triaxial
-    if sp.source == "file" and not (cache is not None and Path(cache).exists()):
-        pos, radii, height, e = built["packing"]
-        say(f"[{case.case.name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
-        return pos, radii, height, {"source": sp.file, "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
-    mats, sand, wall, plate = materials(case)
-    box = SpecimenBox(tx.size, tx.size, tx.size, mats, sand, wall, plate)
-    return generated_specimen(case, box, built.get("curve"), out_dir, cache, comm)
+    tx = case.triaxial
+    return lab_specimen(case, built, SpecimenBox(tx.size, tx.size, tx.size, *materials(case)), out_dir, cache, comm)
 
 
 # --------------------------------------------------------------------------- the cell
@@ -226,19 +218,12 @@ def run(prepared, specimen_cache=None):
 
 
 def _save_checkpoint(out_dir, test, loop):
-    state = {**{k: getattr(test, k) for k in TriaxialTest.SERVO_STATE}, **loop, "step": test.engine.step_count}
-    save_engine_checkpoint(test.engine, out_dir / CHECKPOINT)  # collective when distributed
-    if is_root():
-        atomic_write_text(out_dir / STATE, json.dumps(state, default=lambda x: x.item()))
+    state = {**{k: getattr(test, k) for k in TriaxialTest.SERVO_STATE}, **loop}
+    save_lab_checkpoint(out_dir, test.engine, STATE, state)  # collective when distributed
 
 
 def _load_checkpoint(case, out_dir, comm=None):
-    from de_domain import Engine
-    engine = Engine.load_checkpoint(out_dir / CHECKPOINT, comm=comm)
-    state = json.loads((out_dir / STATE).read_text())
-    if state["step"] != engine.step_count:
-        raise CaseError(out_dir / STATE, "step", state["step"],
-                        f"does not match the checkpoint (step {engine.step_count}); run without --resume")
+    engine, state = load_lab_checkpoint(out_dir, STATE, comm)
     test = TriaxialTest(case, engine)
     for k in TriaxialTest.SERVO_STATE:
         setattr(test, k, state[k])

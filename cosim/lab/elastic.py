@@ -149,12 +149,10 @@ def constants(d_sigma, strain):
 
 def measure(case, case_path, mean_stress, strain, out_dir, size=None):
     """The whole test; writes ``elastic.json`` in ``out_dir`` and returns its dict."""
+    from cosim.apps.dem import materials_of
     from cosim.specimen import SpecimenBox, curve_of, make_specimen
-    from de_domain import Engine, Material, Particles
-    sand_name, wall_name, plate_name = roles(case, case_path)
-    names = [m.name for m in case.dem.materials]
-    mats = [Material(**{k: v for k, v in m.model_dump().items() if k != "name"}) for m in case.dem.materials]
-    sand, wall, plate = names.index(sand_name), names.index(wall_name), names.index(plate_name)
+    from de_domain import Engine, Particles
+    mats, sand, wall, plate = materials_of(case.dem, *roles(case, case_path))
     if case.specimen.source != "generate":
         raise CaseError(case_path, "specimen.source", case.specimen.source,
                         "cosim elastic generates its own cubical specimen: needs source = 'generate'")
