@@ -27,7 +27,8 @@ The run, in both models:
    highest grain under it (s = 0 at the first contact) and moves down at ``footing.velocity``
    until the settlement s = ``footing.settlement`` × B. ``series.csv``: the footing force
    (the impulse the grains give it over each row's interval / that interval), the bearing
-   pressure q = F / (B L_y), s / B, the interface force (coupled), the unbalanced force ratio.
+   pressure q = F / (B L_y), s / B, the interface force (coupled; also an impulse over the row's
+   interval), the unbalanced force ratio.
 4. **Report** — ``summary.json`` (q at s/B = 2, 5, 10 %, the rest balance, wall-clock of
    each phase), ``load_settlement.png``, ``displacement_section.png`` (the grains in the x–z
    section coloured by their displacement during loading), ParaView frames (particles, and
@@ -40,7 +41,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -200,6 +201,7 @@ class Model:
     interface: object = None
     subcycles: int = 1
     soil_density: float = None  # kg/m³ of the FE soil (coupled)
+    interface_impulse: np.ndarray = field(default_factory=lambda: np.zeros(3))  # since take_interface_impulse
 
     @property
     def time(self):
@@ -214,6 +216,12 @@ class Model:
             return
         for _ in range(max(1, int(round(seconds / self.solid.dt)))):
             coupled_app.coupled_step(self.solid, self.engine, self.interface, self.subcycles)
+            self.interface_impulse += self.interface.facets.vertex_impulse.sum(axis=0)
+
+    def take_interface_impulse(self):
+        """The impulse (N s) the grains gave the interface since the last call (0 for all-DEM)."""
+        impulse, self.interface_impulse = self.interface_impulse, np.zeros(3)
+        return impulse
 
     def interface_force(self):
         """Force (N) the grains exert on the interface over the last FE step (0 for all-DEM)."""
@@ -444,6 +452,7 @@ def load(case, model, out_dir, name, state, resume=False):
         footing.vertices[:, 2] = z0  # on the highest grain under it: s = 0 at the first contact
         footing.velocity = np.array([0.0, 0.0, -ft.velocity])
         footing.reset_impulse()
+        model.take_interface_impulse()  # the rest phase's is not the loading's
         start_grains = grains.pos.copy()
         if is_root():
             tmp = start_path.with_name(start_path.stem + ".tmp.npz")
@@ -466,8 +475,9 @@ def load(case, model, out_dir, name, state, resume=False):
         t_last = model.time
         force = footing.vertex_impulse.sum(axis=0) / elapsed
         footing.reset_impulse()
+        interface_force = model.take_interface_impulse() / elapsed  # over the same interval as the footing's
         settlement = z0 - float(footing.vertices[:, 2].mean())
-        row = [model.time, settlement, settlement / B, force[2], force[2] / (B * ly), model.interface_force()[2],
+        row = [model.time, settlement, settlement / B, force[2], force[2] / (B * ly), interface_force[2],
                _unbalanced(model), model.engine.step_count]
         if rows is not None:
             rows.append(row)

@@ -269,9 +269,9 @@ CORPUS = [
     Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),
     Bad("footing", "at least 3 of the largest grains", sets=["soil.thickness=0.004"],
         label="slice thinner than 3 grains"),
-    Bad("footing", "narrower than the DEM zone", sets=["footing.width=0.08"], label="footing wider than the zone"),
+    Bad("footing", "narrower than the DEM zone", sets=["footing.width=0.11"], label="footing wider than the zone"),
     Bad("footing", "zone.width", sets=["zone.width=0.2"], label="zone wider than the block"),
-    Bad("footing", "reaches the zone's bottom", sets=["footing.settlement=0.5", "footing.width=0.07"]),
+    Bad("footing", "reaches the zone's bottom", sets=["footing.settlement=0.5", "footing.width=0.09"]),
     Bad("footing", "not used here", sets=["time.dt=1e-6"], label="time.dt in a footing case"),
     Bad("footing", "lasts until footing.settlement", sets=["time.duration=0.1"]),
     Bad("footing", "remove [dem.particles]", append='\n[dem.particles]\nsource = "file"\nfile = "x.npz"\n'

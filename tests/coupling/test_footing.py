@@ -22,7 +22,7 @@ ENV = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONF
        "OMPI_MCA_rmaps_base_oversubscribe": "1", "NUMBA_NUM_THREADS": "1"}
 TINY = {"soil.width": 0.045, "soil.depth": 0.024, "soil.thickness": 0.009, "soil.mesh_size": 0.01,
         "soil.interface_mesh_size": 0.005, "zone.width": 0.021, "zone.depth": 0.012, "footing.width": 0.007,
-        "footing.velocity": 0.05, "footing.rows": 10, "specimen.layers": 2}
+        "footing.velocity": 0.05, "footing.rows": 10}
 X0, ZB = 0.012, 0.012   # the zone's left side and bottom in the tiny block
 
 
