@@ -35,6 +35,16 @@ def test_info_reports_the_stack():
     assert "0.5.2" in res.stdout  # DOLFINx from Debian
 
 
+def test_every_shipped_case_passes_check():
+    """A user's first command on a shipped case (runs/*.toml: cases and calibration files) is
+    not refused; cosim check also meshes the coupled ones."""
+    from cosim.cli import main
+    cases = sorted((ROOT / "runs").glob("*.toml"))
+    assert len(cases) >= 15
+    refused = [case.name for case in cases if main(["check", str(case)]) != 0]
+    assert refused == []
+
+
 def test_check_exit_codes():
     assert cosim("check", str(DEMO)).returncode == 0
     bad = cosim("check", str(DEMO), "--set", "dem.materials=3")
