@@ -481,6 +481,8 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
             n += s.check_every
             if _unbalanced(engine) < s.unbalanced_force:
                 break
+            if label == "expanded" and _plate_stress(engine, s) < s.seat_stress:
+                break  # not jammed: a loose gas has no equilibrium to reach without gravity
         steps += n
         stages.append({"stage": label, "plate_stress": _plate_stress(engine, s),
                        "unbalanced_force": _unbalanced(engine), "steps": n})

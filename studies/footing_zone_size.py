@@ -9,10 +9,10 @@ what the gap is sensitive to), each with several seeds (a
 different packing each: with ~6 grains under the footing, one packing's curve is far from the
 mean). Writes, in
 ``runs/out/footing_zone_size/`` and ``docs/``: a table of the bearing pressure at s/B = 2, 5,
-10 % (mean over the seeds, with the seeds' spread, and the coupled/all-DEM difference of the
+10 % (mean over the seeds with its standard error, and the coupled/all-DEM difference of the
 means), the wall-clock of each, and the mean load-settlement curves with their seed ranges.
 
-    python studies/footing_zone_size.py [--seeds 11 12 13] [--ranks N]
+    python studies/footing_zone_size.py [--seeds 11 12 ... 18] [--variant-seeds 3] [--ranks N]
 """
 from __future__ import annotations
 
@@ -77,12 +77,13 @@ def carved_case(seed, width, depth):
 
 
 def statistics(runs):
-    """Mean and half-range over seeds of q at each level, the mean curve and its range, grains,
-    wall-clock and rest balance."""
+    """Mean over seeds of q at each level and its standard error s/√n, the mean curve and its
+    range, grains, wall-clock and rest balance."""
     q = np.array([[bearing_pressure_at(s)[k] for k in SETTLEMENT_LEVELS] for s, _ in runs])
     curves = np.array([np.interp(GRID, s["settlement_ratio"], s["bearing_pressure"]) for s, _ in runs])
     balance = [i["rest"]["interface_force_over_weight"] for _, i in runs]
-    return {"q": q.mean(axis=0), "spread": 0.5 * (q.max(axis=0) - q.min(axis=0)), "curve": curves.mean(axis=0),
+    error = q.std(axis=0, ddof=1) / np.sqrt(len(q)) if len(q) > 1 else np.zeros(q.shape[1])
+    return {"q": q.mean(axis=0), "error": error, "seeds": len(q), "curve": curves.mean(axis=0),
             "low": curves.min(axis=0), "high": curves.max(axis=0), "grains": np.mean([i["grains"] for _, i in runs]),
             "wall": np.mean([i["wall_clock_s"]["total_s"] for _, i in runs]),
             "balance": None if balance[0] is None else (min(balance), max(balance))}
@@ -91,21 +92,21 @@ def statistics(runs):
 def table(results, references):
     """Markdown table; each row's (±%) and wall-clock ratio are against its reference row
     (``references[name]``; the all-DEM rows have none)."""
-    head = ("| model | grains | interface force / weight at rest | "
+    head = ("| model | seeds | grains | interface force / weight at rest | "
             + " | ".join(f"q at s/B = {100 * k:.0f} % [kPa]" for k in SETTLEMENT_LEVELS)
             + " | wall-clock [s] (all-DEM / this) |")
-    lines = [head, "|" + "---|" * (4 + len(SETTLEMENT_LEVELS))]
+    lines = [head, "|" + "---|" * (5 + len(SETTLEMENT_LEVELS))]
     for name, r in results.items():
         reference = results[references.get(name, name)]
         cells = []
         for i in range(len(SETTLEMENT_LEVELS)):
-            cell = f"{r['q'][i] / 1e3:.2f} ± {r['spread'][i] / 1e3:.2f}"
+            cell = f"{r['q'][i] / 1e3:.2f} ± {r['error'][i] / 1e3:.2f}"
             if r is not reference:
                 cell += f" ({100 * (r['q'][i] - reference['q'][i]) / reference['q'][i]:+.0f} %)"
             cells.append(cell)
         balance = "-" if r["balance"] is None else f"{r['balance'][0]:.4f} – {r['balance'][1]:.4f}"
         ratio = "" if r is reference else f" ({reference['wall'] / r['wall']:.1f}x)"
-        lines.append(f"| {name} | {r['grains']:.0f} | {balance} | " + " | ".join(cells)
+        lines.append(f"| {name} | {r['seeds']} | {r['grains']:.0f} | {balance} | " + " | ".join(cells)
                      + f" | {r['wall']:.0f}{ratio} |")
     return "\n".join(lines)
 
@@ -132,7 +133,10 @@ def plot(results, path):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13])
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(range(11, 19)),
+                        help="seeds of the all-DEM model and the zone sizes")
+    parser.add_argument("--variant-seeds", type=int, default=3,
+                        help="the variants (E/2, frictionless, carved, layered) take the first N seeds")
     parser.add_argument("--ranks", type=int, default=1)
     args = parser.parse_args()
     results, references = {}, {}
@@ -143,27 +147,29 @@ def main():
                 for seed in args.seeds]
         results[f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm"] = statistics(runs)
     width, depth = ZONES[-1]
+    few = args.seeds[:args.variant_seeds]
     for name, extra in VARIANTS:
         label = f"zone_{1e3 * width:.0f}x{1e3 * depth:.0f}mm_{name.replace(' ', '_').replace('/', '_')}"
         runs = [run(label, seed, args.ranks, "coupled", "--set", f"zone.width={width}", "--set", f"zone.depth={depth}",
-                    *extra) for seed in args.seeds]
+                    *extra) for seed in few]
         results[f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm, {name}"] = statistics(runs)
     runs = [run(f"zone_{1e3 * width:.0f}x{1e3 * depth:.0f}mm_carved", seed, args.ranks, "coupled", "--set",
                 f"zone.width={width}", "--set", f"zone.depth={depth}", case=carved_case(seed, width, depth))
-            for seed in args.seeds]
+            for seed in few]
     results[f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm, grains carved from the all-DEM's"] = \
         statistics(runs)
     for name in results:
         references[name] = "all-DEM"
     layered = "all-DEM, layered under-compaction"
-    results[layered] = statistics([run("all_dem_layered", seed, args.ranks, "dem", *LAYERED) for seed in args.seeds])
+    results[layered] = statistics([run("all_dem_layered", seed, args.ranks, "dem", *LAYERED) for seed in few])
     runs = [run(f"zone_{1e3 * width:.0f}x{1e3 * depth:.0f}mm_layered", seed, args.ranks, "coupled", "--set",
-                f"zone.width={width}", "--set", f"zone.depth={depth}", *LAYERED) for seed in args.seeds]
+                f"zone.width={width}", "--set", f"zone.depth={depth}", *LAYERED) for seed in few]
     name = f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm, layered under-compaction"
     results[name] = statistics(runs)
     references[name] = layered
     text = table(results, references)
-    text += (f"\n\nseeds {args.seeds}; q: mean ± half the range over the seeds; (±%): the coupled mean against "
+    text += (f"\n\nseeds {args.seeds} (variants: {few}); q: mean ± its standard error s/√n over the seeds; "
+             "(±%): the coupled mean against "
              "its all-DEM mean (the layered row against the layered all-DEM)\n")
     print(text)
     OUT.mkdir(parents=True, exist_ok=True)
