@@ -91,13 +91,13 @@ def statistics(runs):
 
 def table(results, references):
     """Markdown table; each row's (±%) and wall-clock ratio are against its reference row
-    (``references[name]``; the all-DEM rows have none)."""
+    ``references[name]`` (the all-DEM rows are their own)."""
     head = ("| model | seeds | grains | interface force / weight at rest | "
             + " | ".join(f"q at s/B = {100 * k:.0f} % [kPa]" for k in SETTLEMENT_LEVELS)
             + " | wall-clock [s] (all-DEM / this) |")
     lines = [head, "|" + "---|" * (5 + len(SETTLEMENT_LEVELS))]
     for name, r in results.items():
-        reference = results[references.get(name, name)]
+        reference = results[references[name]]
         cells = []
         for i in range(len(SETTLEMENT_LEVELS)):
             cell = f"{r['q'][i] / 1e3:.2f} ± {r['error'][i] / 1e3:.2f}"
@@ -111,21 +111,31 @@ def table(results, references):
     return "\n".join(lines)
 
 
-def plot(results, path):
+def plot(results, references, path):
+    """Two panels of mean load-settlement curves with their seed ranges: the zone sizes against
+    all-DEM, and the variants against their all-DEM references."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7.0, 4.6))
-    for name, r in results.items():
-        line, = ax.plot(100 * GRID, r["curve"] / 1e3, lw=2.0 if name == "all-DEM" else 1.4, label=name)
-        ax.fill_between(100 * GRID, r["low"] / 1e3, r["high"] / 1e3, color=line.get_color(), alpha=0.15, lw=0)
-    for level in SETTLEMENT_LEVELS:
-        ax.axvline(100 * level, color="0.85", lw=0.8, zorder=0)
-    ax.set_xlabel("settlement s / B [%]")
-    ax.set_ylabel("bearing pressure q [kPa]")
-    ax.set_title("strip footing: coupled (DEM zone + FE) against all-DEM\nmean over seeds, band = seed range")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    sizes = [name for name in results if references[name] == "all-DEM" and "mm," not in name]
+    variants = ["all-DEM", sizes[-1]] + [name for name in results if name not in sizes]
+    fig, axes = plt.subplots(1, 2, figsize=(12.0, 4.6), sharey=True)
+    for ax, names, title in ((axes[0], sizes, "DEM zones of growing size"),
+                             (axes[1], variants, "on the 105 x 40 mm zone: what the gap depends on")):
+        for name in names:
+            r = results[name]
+            reference = references[name] == name
+            line, = ax.plot(100 * GRID, r["curve"] / 1e3, lw=2.2 if reference else 1.4,
+                            ls="--" if reference and name != "all-DEM" else "-", label=f"{name} ({r['seeds']} seeds)")
+            ax.fill_between(100 * GRID, r["low"] / 1e3, r["high"] / 1e3, color=line.get_color(), alpha=0.12, lw=0)
+        for level in SETTLEMENT_LEVELS:
+            ax.axvline(100 * level, color="0.85", lw=0.8, zorder=0)
+        ax.set_xlabel("settlement s / B [%]")
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="upper left")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("bearing pressure q [kPa]")
+    fig.suptitle("strip footing, B/d50 = 6: coupled (DEM zone + FE) against all-DEM; mean over seeds, band = range")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -162,6 +172,7 @@ def main():
         references[name] = "all-DEM"
     layered = "all-DEM, layered under-compaction"
     results[layered] = statistics([run("all_dem_layered", seed, args.ranks, "dem", *LAYERED) for seed in few])
+    references[layered] = layered
     runs = [run(f"zone_{1e3 * width:.0f}x{1e3 * depth:.0f}mm_layered", seed, args.ranks, "coupled", "--set",
                 f"zone.width={width}", "--set", f"zone.depth={depth}", *LAYERED) for seed in few]
     name = f"coupled, zone {1e3 * width:.0f} x {1e3 * depth:.0f} mm, layered under-compaction"
@@ -174,8 +185,8 @@ def main():
     print(text)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "table.md").write_text(text)
-    plot(results, OUT / "load_settlement.png")
-    plot(results, ROOT / "docs" / "footing_zone_size.png")
+    plot(results, references, OUT / "load_settlement.png")
+    plot(results, references, ROOT / "docs" / "footing_zone_size.png")
 
 
 if __name__ == "__main__":

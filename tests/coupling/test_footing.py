@@ -63,10 +63,12 @@ def test_the_loaded_footing_bears_on_the_grains_and_the_interface_carries_it(run
     assert s["settlement_ratio"][-1] == pytest.approx(0.1, rel=0.02)
     assert s["bearing_pressure"][-1] > 0 and np.all(s["footing_force_z"] >= 0)
     rest = json.loads((runs / "coupled" / "summary.json").read_text())["rest"]
-    # statics of the zone at the end: interface force ~ -(grain weight + footing force), within the
-    # unbalanced part of a slowly loaded packing
-    total = -(rest["grain_weight_N"] + s["footing_force_z"][-1])
-    assert s["interface_force_z"][-1] == pytest.approx(total, rel=0.15)
+    # momentum balance of the zone over the loading: the rows are impulses over equal intervals, so
+    # sum(interface force) = -sum(grain weight + footing force) + the grains' momentum at the end
+    # (they were at rest at the start; the part under the footing moves with it: ~2 % here)
+    assert np.ptp(np.diff(s["time"])) < 1e-9
+    total = -(len(s["time"]) * rest["grain_weight_N"] + np.sum(s["footing_force_z"]))
+    assert np.sum(s["interface_force_z"]) == pytest.approx(total, rel=0.05)
     for name in ("load_settlement.png", "displacement_section.png", "fields.xdmf", "particles.pvd", "rest.csv"):
         assert (runs / "coupled" / name).exists(), name
 
