@@ -195,3 +195,27 @@ def test_a_rank_without_particles_runs_correctly():
     if COMM.size > 1:
         assert COMM.allreduce(int(spread.particles.n_owned == 0)) >= 1
     assert_identical(snapshot(serial), snapshot(spread))
+
+
+def test_radius_expansion_of_grains_that_do_not_jam_is_the_same_on_every_rank_count():
+    """The generation's collective steps (the unjammed zero-gravity stage ends, the lid jumps
+    onto the highest grain over all ranks, then is seated) give the serial specimen bit for bit."""
+    from de_domain.deposition import (
+        GenerationSettings,
+        diameters_for_solid_volume,
+        generate,
+        solid_volume_for,
+        specimen_curve,
+    )
+    L, H, e = 0.010, 0.016, 3.0
+    curve = specimen_curve(diameters=[1.6e-3, 2.4e-3], passing=[0.0, 1.0])
+    d = diameters_for_solid_volume(curve, solid_volume_for(e, L * L * H), np.random.default_rng(2))
+    s = GenerationSettings(box_length=L, height=H, void_ratio=e, sand=Material(density=2650, young=5e7, friction=0.3),
+                           wall=Material(density=7480, young=5e7, friction=0.0),
+                           plate=Material(density=7480, young=5e7, friction=0.8), friction=0.3, seed=3,
+                           max_steps_per_layer=5000, density_scale=1.0)
+    serial = generate("radius_expansion", d, s)
+    spread = generate("radius_expansion", d, s, comm=COMM)
+    assert spread.height == serial.height < H
+    np.testing.assert_array_equal(spread.positions, serial.positions)
+    np.testing.assert_array_equal(spread.radii, serial.radii)
