@@ -86,12 +86,12 @@ bench-peers: setup
 	fi
 	$(PY) benchmarks/compare_peers.py
 
-# DEM over MPI ranks (80k and 320k beds, 1/2 ranks, 1/2 threads; LIGGGHTS beside it when
-# `make bench-peers` has installed it): README "DEM under MPI".
 # coupled FE step against the DEM window and the FE step alone (README "Coupling overhead")
 bench-coupled: setup
 	$(PY) benchmarks/coupled_overhead.py
 
+# DEM over MPI ranks (80k and 320k beds, 1/2 ranks, 1/2 threads; LIGGGHTS beside it when
+# `make bench-peers` has installed it): README "DEM under MPI".
 bench-mpi: setup
 	$(PY) benchmarks/dem_scaling.py
 

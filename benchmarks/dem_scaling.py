@@ -10,8 +10,9 @@ Configurations, interleaved (A/B/C…, then again, ``--repeats`` times; median):
 
 * ours 1 rank × 1 thread and 1 rank × 2 threads: the serial engine (``comm=None``,
   whole blocks of steps in one compiled call);
-* ours 2 ranks × 1 thread: ``mpirun -n 2``, ``Engine(..., comm=COMM_WORLD)``;
-* LIGGGHTS 3.8 at 1 and 2 ranks (``mpirun -np 2 liggghts``, the deck of
+* ours 2 ranks × 1 thread: ``mpirun --bind-to core -n 2``, ``Engine(..., comm=COMM_WORLD)``,
+  and the same with ``--bind-to none`` (the ranks free to move between cores);
+* LIGGGHTS 3.8 at 1 and 2 ranks (``mpirun --bind-to core -n 2 liggghts``, the deck of
   benchmarks/compare_peers.py reading the same tiled bed), when installed.
 
 Each run takes one untimed step (list build, cache load), then times ``--steps``
@@ -40,7 +41,14 @@ import beds  # noqa: E402
 
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
-MPIRUN = ["mpirun", "--oversubscribe", "--bind-to", "none"]
+CORES = os.cpu_count() or 1
+
+
+def mpirun(ranks, bound=True):
+    """``mpirun -n ranks`` with each rank bound to a core while there are cores enough
+    (OpenMPI's own default for 2 ranks), unbound and oversubscribed beyond."""
+    binding = ["--bind-to", "core"] if bound and ranks <= CORES else ["--oversubscribe", "--bind-to", "none"]
+    return ["mpirun", *binding, "-n", str(ranks)]
 TIMEOUT = 3600
 
 
@@ -71,10 +79,10 @@ def worker(n, steps, threads):
                           "bytes_per_particle": memory / n, "builds": builds}), flush=True)
 
 
-def ours(n, steps, ranks, threads):
+def ours(n, steps, ranks, threads, bound=True):
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", str(n), str(steps), str(threads)]
     if ranks > 1:
-        cmd = MPIRUN + ["-n", str(ranks)] + cmd
+        cmd = mpirun(ranks, bound) + cmd
     out = subprocess.run(cmd, env=ENV, check=True, capture_output=True, text=True, timeout=TIMEOUT).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -98,7 +106,7 @@ def liggghts(workdir, n, steps, ranks, L):
     log = f"log.{n}.{ranks}"
     cmd = ["liggghts", "-echo", "none", "-var", "N", str(n), "-var", "L", f"{L:g}", "-in", "in.bed", "-log", log]
     if ranks > 1:
-        cmd = MPIRUN + ["-np", str(ranks)] + cmd
+        cmd = mpirun(ranks) + cmd
     subprocess.run(cmd, cwd=workdir, env=dict(ENV, OMP_NUM_THREADS="1"), check=True, stdout=subprocess.DEVNULL,
                    stderr=subprocess.STDOUT, timeout=TIMEOUT)
     loops = re.findall(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps", (Path(workdir) / log).read_text())
@@ -125,7 +133,8 @@ def main(argv=None):
         steps = args.steps or max(20, int(4e7 // n))
         configs = {"ours 1 rank x 1 thread": lambda n=n, s=steps: ours(n, s, 1, 1),
                    "ours 1 rank x 2 threads": lambda n=n, s=steps: ours(n, s, 1, 2),
-                   "ours 2 ranks x 1 thread": lambda n=n, s=steps: ours(n, s, 2, 1)}
+                   "ours 2 ranks x 1 thread": lambda n=n, s=steps: ours(n, s, 2, 1),
+                   "  same, ranks not bound": lambda n=n, s=steps: ours(n, s, 2, 1, bound=False)}
         with tempfile.TemporaryDirectory(prefix="dem_scaling_") as tmp:
             if peers:
                 L = liggghts_inputs(tmp, n, steps)
@@ -138,7 +147,7 @@ def main(argv=None):
         base = statistics.median(r["rate"] for r in runs["ours 1 rank x 1 thread"])
         print(f"\nW1 bed N = {n:,}, {steps} timed steps, median of {args.repeats}")
         print(f"{'configuration':26s} {'particle-steps/s':>17s} {'vs ours 1x1':>11s} {'ghosts/rank':>14s} "
-              f"{'kB sent/step/rank':>18s} {'B/particle':>10s} {'builds':>6s}")
+              f"{'kB sent/step/rank':>18s} {'B/particle':>10s} {'builds':>6s}  each round (1e6/s)")
         for name, results in runs.items():
             rate = statistics.median(r["rate"] for r in results)
             last = results[-1]
@@ -146,8 +155,9 @@ def main(argv=None):
             sent = "/".join(f"{b / 1e3:.0f}" for b in last.get("sent", [])) or "-"
             memory = f"{last['bytes_per_particle']:.0f}" if "bytes_per_particle" in last else "-"
             builds = str(last.get("builds", "-"))
+            rounds = " ".join(f"{r['rate'] / 1e6:.2f}" for r in results)
             print(f"{name:26s} {rate:17.3e} {rate / base:10.2f}x {ghosts:>14s} {sent:>18s} {memory:>10s} "
-                  f"{builds:>6s}")
+                  f"{builds:>6s}  {rounds}")
         if peers:
             lig = statistics.median(r["rate"] for r in runs["LIGGGHTS 2 ranks"])
             two = statistics.median(r["rate"] for r in runs["ours 2 ranks x 1 thread"])

@@ -20,15 +20,22 @@ from __future__ import annotations
 import numpy as np
 
 
+_ONLY_ARRAYS = {np.ndarray}
+
+
 def _argument_key(args):
-    """Each array's identity and every other value's type, through the tuples, in order."""
+    """Each array's identity and every other value's type, through the tuples, in order
+    (a tuple of arrays only, the engine's usual, in one pass of C loops)."""
     key = []
     for value in args:
         if type(value) is np.ndarray:
             key.append(id(value))
         elif isinstance(value, tuple):
             key.append(type(value))
-            key.extend(_argument_key(value))
+            if set(map(type, value)) == _ONLY_ARRAYS:
+                key.extend(map(id, value))
+            else:
+                key.extend(_argument_key(value))
         else:
             key.append(type(value))
     return key

@@ -208,39 +208,35 @@ def check_finite(engine):
 
 
 def rebuild_due(engine):
-    """This rank's part of the rebuild test on the public arrays (before a run): no
-    lists yet, the walls changed, or owned particles, walls or vertices moved more
-    than the skin allows since the last build."""
+    """This rank's part of the rebuild test (before a run): no lists yet, the walls
+    changed, or owned particles, walls or vertices moved more than the skin allows
+    since the last build."""
     nl = engine.neighbors
-    p = engine.particles
-    if nl.perm is None or nl.ref_pos is None or nl.ref_pos.shape[0] != p.n:
+    if nl.perm is None or nl.ref_pos is None or nl.ref_pos.shape[0] != engine._particles.n:
         return True
     vertices = engine._gather_facets()[0]
     wall_point, wall_normal, _, _ = engine._wall_arrays()
-    return nl.needs_rebuild(p.pos, p.n, vertices, wall_point, wall_normal)
+    return engine._rebuild_due(vertices, wall_point, wall_normal)
 
 
 def run(engine, nsteps):
-    """``nsteps`` distributed steps (module docstring)."""
+    """``nsteps`` distributed steps (module docstring), on the sorted copies (left
+    holding the state at the end if ``engine.keep_sorted``)."""
     domain = engine.domain
     comm = domain.comm
-    engine._book_boundary_jumps()
+    engine._book_boundary_jumps(engine._wall_arrays()[0], engine._gather_facets()[0])
     due = rebuild_due(engine)
-    copies = None
     for _ in range(int(nsteps)):
         if comm.allreduce(bool(due), op=MPI.LOR):
-            if copies is not None:
-                engine._write_back(copies)
+            engine._write_back()
             rebuild(engine)
-            copies = None
-        if copies is None:
-            copies = engine._sorted_copies()
+        copies = engine._sorted_copies()
         due = engine._advance_copies(copies)
         domain.exchange.exchange(copies)
         if engine.facets:
             facet_vertex_forces(engine)
-    if copies is not None:
-        engine._write_back(copies)
+    if not engine.keep_sorted:
+        engine._write_back()
     wall_totals(engine)
 
 

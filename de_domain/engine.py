@@ -46,6 +46,7 @@ from .state import (
 from .walls import FacetMesh, PlaneWall
 
 SORTED_MIN_STEPS = 8  # runs at least this long use spatially sorted copies of the particle arrays
+# (every run does, with Engine.keep_sorted)
 STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
                "elastic_normal", "elastic_tangential", "elastic_rolling")
 RATE_TERMS = ("work_walls", "work_boundary", "friction", "contact_damping", "background_damping")
@@ -72,6 +73,14 @@ class Engine:
     walls and facets). ``particles`` then holds this rank's owned particles and
     ghosts in ascending global id (``domain.ids``); :meth:`global_particles` gathers
     them. Results are bit-identical for any number of ranks.
+
+    ``keep_sorted`` (default False): runs leave the particle state in the engine's
+    spatially sorted copies instead of writing it back to ``particles`` after every
+    run, so that a caller who runs many short windows (the FE–DE coupling: one per FE
+    step) pays neither the gather nor the scatter of the copies each time. Reading
+    :attr:`particles` or :attr:`acceleration` writes the state back first (and the
+    next run gathers it again), so what a caller reads is always current; a reference
+    to the arrays kept from before a run is not.
     """
 
     def __init__(self, particles: Particles, materials, walls=(), facets=(), contact_law="linear",
@@ -85,6 +94,8 @@ class Engine:
             raise ValueError(f"Engine: local_damping = {local_damping!r} is outside [0, 1)")
         if viscous_damping < 0.0:
             raise ValueError(f"Engine: viscous_damping = {viscous_damping!r} must be >= 0")
+        self._copies_hold_state = False  # the sorted copies, not the public arrays, are current
+        self.keep_sorted = False
         self.particles = particles
         self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
         n_mat = len(self.materials)
@@ -101,7 +112,7 @@ class Engine:
         self.facets = list(facets)
         # where the engine last left each wall and facet vertex: a move made from outside
         # between two runs is the difference (booked as boundary work)
-        self._wall_points_known = [w.point.copy() for w in self.walls]
+        self._wall_points_known = np.array([w.point for w in self.walls]).reshape(-1, 3)
         self._facet_vertices_known = [m.vertices.copy() for m in self.facets]
         self.gravity = np.array(gravity, dtype=np.float64).reshape(3)
         self.safety_factor = float(safety_factor)
@@ -122,14 +133,40 @@ class Engine:
         self._identity_perm = np.zeros(0, np.int32)  # perm of the sorted copies: 0, 1, ..., n − 1
         self._sorted = None  # buffers of the spatially sorted copies (_sorted_copies)
         self._advance_kernel = CachedEntry(fused.advance)  # fused.advance without per-call typing
+        self._wall_totals = CachedEntry(fused.wall_totals)
         n = particles.n
-        self.acceleration = np.zeros((n, 3))  # last step's (v^{n+½} − v^{n−½})/Δt, for the dashpot
+        self.acceleration = np.zeros((n, 3))
         self._allocate_pair_arrays(0)
         self._energy_reset()
         self.domain = None
         self._pending_records = None  # contact history from a checkpoint, for the first list build
         if comm is not None:
             _distributed().distribute(self, particles, comm)
+
+    @property
+    def particles(self) -> Particles:
+        """The particles (this rank's owned ones and ghosts, when distributed), current:
+        written back from the sorted copies first if a ``keep_sorted`` run left the
+        state there."""
+        self._write_back()
+        return self._particles
+
+    @particles.setter
+    def particles(self, value: Particles):
+        self._copies_hold_state = False
+        self._particles = value
+
+    @property
+    def acceleration(self) -> np.ndarray:
+        """Last step's (v^{n+½} − v^{n−½})/Δt per particle (n, 3), for the contact dashpot;
+        current, like :attr:`particles`."""
+        self._write_back()
+        return self._acceleration
+
+    @acceleration.setter
+    def acceleration(self, value):
+        self._copies_hold_state = False
+        self._acceleration = value
 
     def set_materials(self, materials):
         """Replace the contact parameters (friction, restitution, stiffness ratio, rolling
@@ -219,10 +256,12 @@ class Engine:
             return
         done = 0
         while done < nsteps:
-            self._book_boundary_jumps()
-            self._update_lists()
+            walls = self._wall_arrays()
+            facet_state = self._gather_facets()
+            self._book_boundary_jumps(walls[0], facet_state[0])
+            self._update_lists(walls, facet_state[0])
             todo = min(nsteps - done, self.neighbors.perm_step + fused.PERM_EVERY - self.step_count)
-            done += self._advance(todo)
+            done += self._advance(todo, walls, facet_state)
 
     def _wall_arrays(self):
         """(point, normal, velocity, material) of the plane walls, in arrays the engine keeps
@@ -235,13 +274,13 @@ class Engine:
             point[w], normal[w], velocity[w], material[w] = wall.point, wall.normal, wall.velocity, wall.material
         return self._walls_state
 
-    def _update_lists(self):
-        p = self.particles
+    def _update_lists(self, walls, vertices):
+        p = self._particles
         nl = self.neighbors
-        vertices = self._gather_facets()[0]
-        wp, wn, _, _ = self._wall_arrays()
+        wp, wn, _, _ = walls
         refresh = nl.perm is not None and self.step_count >= nl.perm_step + fused.PERM_EVERY
-        if refresh or nl.needs_rebuild(p.pos, p.n, vertices, wp, wn):
+        if refresh or self._rebuild_due(vertices, wp, wn):
+            self._write_back()  # the build reads, reorders and rewrites the public arrays
             if refresh or nl.perm is None:
                 nl.perm_step = self.step_count
             nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, ghost=p.ghost,
@@ -249,10 +288,21 @@ class Engine:
             self._pending_records = None
             self._allocate_pair_arrays(nl.pair_js.size)
 
+    def _rebuild_due(self, vertices, wall_point, wall_normal):
+        """Have owned particles, walls or facet vertices moved more than the skin allows
+        since the last list build (read from the sorted copies when they hold the state:
+        the largest displacement does not depend on the order)?"""
+        p = self._particles
+        nl = self.neighbors
+        if self._copies_hold_state:
+            copies = self._sorted
+            return nl.needs_rebuild(copies.pos, p.n, vertices, wall_point, wall_normal, ref_pos=copies.ref_pos)
+        return nl.needs_rebuild(p.pos, p.n, vertices, wall_point, wall_normal)
+
     def _kernel_state(self, walls, facet_state, sorted_copies):
         """The named tuples of :mod:`de_domain.state` for :func:`fused.advance`, over the
         public arrays (through ``perm``) or over the spatially sorted copies."""
-        p = self.particles
+        p = self._particles
         nl = self.neighbors
         in_order = sorted_copies is not None
         settings = StepSettings(law=self.law, dt=self.dt, gravity=self.gravity, local_damping=self.local_damping,
@@ -283,16 +333,20 @@ class Engine:
 
     def _public_arrays(self):
         """The particle arrays in the public order, as the kernels take them."""
-        p = self.particles
-        return ParticleArrays(p.pos, p.vel, self.acceleration, p.angvel, p.radius, p.mass, p.inertia, p.material,
+        p = self._particles
+        return ParticleArrays(p.pos, p.vel, self._acceleration, p.angvel, p.radius, p.mass, p.inertia, p.material,
                               p.blocked, p.prescribed, p.prescribed_velocity, p.force, p.torque,
                               self.neighbors.ref_pos, p.ghost)
 
     def _sorted_copies(self):
         """Particle arrays gathered into the spatial order (index = perm position), in
         buffers the engine keeps (made again only when the particle count changes, or
-        constraints appear: without them the constraint arrays are not read)."""
-        p = self.particles
+        constraints appear: without them the constraint arrays are not read); they hold
+        the state from then on, until :meth:`_write_back`. Gathered only if they do not
+        hold it already."""
+        if self._copies_hold_state:
+            return self._sorted
+        p = self._particles
         constraints = bool(p.blocked.any() or p.prescribed.any())
         copies = self._sorted
         if copies is None or copies.pos.shape[0] != p.n or (constraints and copies.blocked is p.blocked):
@@ -304,28 +358,29 @@ class Engine:
                 np.empty(n), np.empty(n, np.int32), *constraint_arrays, np.zeros((n, 3)), np.zeros((n, 3)),
                 np.empty((n, 3)), np.empty(n, np.bool_))
         fused.gather_in_order(self.neighbors.perm, self._public_arrays(), copies, constraints)
+        self._copies_hold_state = True
         return copies
 
-    def _advance(self, nsteps):
+    def _advance(self, nsteps, walls, facet_state):
         """Fused steps until ``nsteps`` are done or the lists need a rebuild.
 
-        Runs of ``SORTED_MIN_STEPS`` or more work on copies of the particle arrays in
-        the spatial order (gathered before, scattered after: cache-friendly); shorter
-        ones in place through ``perm``. Both give bit-identical results."""
-        p = self.particles
-        walls = self._wall_arrays()
+        Runs of ``SORTED_MIN_STEPS`` or more, and every run of a ``keep_sorted``
+        engine, work on copies of the particle arrays in the spatial order (gathered
+        before, scattered after unless ``keep_sorted``: cache-friendly); shorter ones in
+        place through ``perm``. Both give bit-identical results."""
+        p = self._particles
         clock = self._clock_at_start()
         copies = None
-        if nsteps >= SORTED_MIN_STEPS and p.n_owned == p.n:
+        if p.n_owned == p.n and (nsteps >= SORTED_MIN_STEPS or self.keep_sorted or self._copies_hold_state):
             copies = self._sorted_copies()
-        vertices, vertex_vel = self._gather_facets()
+        vertices, vertex_vel = facet_state
         impulse = self._facet_impulse
         for k, mesh in enumerate(self.facets):
             impulse[self._vertex_offsets[k]:self._vertex_offsets[k + 1]] = mesh.vertex_impulse
         self._advance_kernel(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies),
                              self._books, clock)
-        if copies is not None:
-            self._write_back(copies)
+        if not self.keep_sorted:
+            self._write_back()
         done = int(clock[CLOCK_STEPS])
         self.time = float(clock[CLOCK_TIME])
         self.step_count += done
@@ -333,9 +388,12 @@ class Engine:
         self._finish_facets(vertices, impulse)
         return done
 
-    def _write_back(self, copies):
-        """Scatter the spatially sorted copies back to the public arrays."""
-        fused.scatter_in_order(self.neighbors.perm, copies, self._public_arrays())
+    def _write_back(self):
+        """Scatter the spatially sorted copies back to the public arrays, if they hold the
+        state (the public arrays then do, and the next run gathers them again)."""
+        if self._copies_hold_state:
+            self._copies_hold_state = False
+            fused.scatter_in_order(self.neighbors.perm, self._sorted, self._public_arrays())
 
     def _advance_copies(self, copies):
         """One step on the sorted copies of a distributed run (the facet vertex forces
@@ -349,22 +407,22 @@ class Engine:
         self.time = float(clock[CLOCK_TIME])
         self.step_count += 1
         for w, wall in enumerate(self.walls):
-            wall.point = walls[0][w].copy()
-            self._wall_points_known[w] = wall.point.copy()
+            wall.point = walls[0][w]
+        self._wall_points_known[:] = walls[0]
         for k, mesh in enumerate(self.facets):
             mesh.vertices[:] = vertices[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
-            self._facet_vertices_known[k] = mesh.vertices.copy()
+            self._facet_vertices_known[k][:] = mesh.vertices
         return due
 
     def _finish_walls(self, wall_point):
         nl = self.neighbors
         if not self.walls:
             return
-        totals = fused.wall_totals(len(self.walls), nl.w_idx, nl.w_particle, nl.w_order, nl.w_force, fused.PBLOCK)
+        totals = self._wall_totals(len(self.walls), nl.w_idx, nl.w_particle, nl.w_order, nl.w_force, fused.PBLOCK)
         for w, wall in enumerate(self.walls):
-            wall.force = totals[w].copy()
-            wall.point = wall_point[w].copy()
-            self._wall_points_known[w] = wall.point.copy()
+            wall.force = totals[w]  # rows of a new array
+            wall.point = wall_point[w]  # (the setter copies)
+        self._wall_points_known[:] = wall_point
 
     def _clock_at_start(self):
         """The kernel's clock (kept by the engine), at this time and no step done."""
@@ -387,24 +445,25 @@ class Engine:
         for k, mesh in enumerate(self.facets):
             part = slice(self._vertex_offsets[k], self._vertex_offsets[k + 1])
             mesh.vertices[:] = vertices[part]
-            self._facet_vertices_known[k] = mesh.vertices.copy()
+            self._facet_vertices_known[k][:] = mesh.vertices
             mesh.vertex_force = self._vertex_force[part].copy()
             mesh.vertex_impulse[:] = impulse[part]
             mesh.force = mesh.vertex_force.sum(axis=0)
 
-    def _book_boundary_jumps(self):
-        """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force)."""
+    def _book_boundary_jumps(self, wall_point, vertices):
+        """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force).
+        ``wall_point``, ``vertices``: where they are now (:meth:`_wall_arrays`,
+        :meth:`_gather_facets`)."""
         work = 0.0
-        for w, wall in enumerate(self.walls):
-            jump = wall.point - self._wall_points_known[w]
-            if np.any(jump != 0.0):
-                work -= float(wall.force @ jump)
-                self._wall_points_known[w] = wall.point.copy()
+        for w in np.flatnonzero(np.any(wall_point != self._wall_points_known, axis=1)):
+            work -= float(self.walls[w].force @ (wall_point[w] - self._wall_points_known[w]))
+        self._wall_points_known[:] = wall_point
         for k, mesh in enumerate(self.facets):
-            jump = mesh.vertices - self._facet_vertices_known[k]
-            if np.any(jump != 0.0):
-                work -= float(np.sum(mesh.vertex_force * jump))
-                self._facet_vertices_known[k] = mesh.vertices.copy()
+            known = self._facet_vertices_known[k]
+            now = vertices[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
+            if not np.array_equal(now, known):
+                work -= float(np.sum(mesh.vertex_force * (now - known)))
+                known[:] = now
         if self.domain is None or self.domain.comm.rank == 0:  # the walls are global: book once
             self._jump_work += work
 
@@ -475,7 +534,7 @@ class Engine:
     def wall_history(self):
         """Dense (n, n_walls, 6) copy of the plane-wall contact history (stored sparse)."""
         nl = self.neighbors
-        out = np.zeros((self.particles.n, len(self.walls), 6))
+        out = np.zeros((self._particles.n, len(self.walls), 6))
         out[nl.w_particle, nl.w_idx] = nl.w_hist
         return out
 
@@ -483,7 +542,7 @@ class Engine:
     def wall_fn(self):
         """Dense (n, n_walls) copy of the last step's normal force per sphere–wall contact."""
         nl = self.neighbors
-        out = np.zeros((self.particles.n, len(self.walls)))
+        out = np.zeros((self._particles.n, len(self.walls)))
         out[nl.w_particle, nl.w_idx] = nl.w_fn
         return out
 
@@ -506,7 +565,7 @@ class Engine:
             out[k] = getattr(self, k).nbytes
         out.update(self.neighbors.memory_bytes())
         p = self.particles
-        if p.n:  # buffers of the copies in the spatial order, kept after the first run(n ≥ SORTED_MIN_STEPS)
+        if p.n:  # buffers of the copies in the spatial order, kept after the first run on them
             per = 6 * 24 + 3 * 8 + 4 + 24 + 1  # pos vel acc angvel force torque, radius mass inertia, material,
             if p.blocked.any() or p.prescribed.any():  # ref_pos, ghost
                 per += 6 + 6 + 48
@@ -648,7 +707,7 @@ class Engine:
         engine = cls(particles, materials, walls, facets, contact_law=str(d["contact_law"]),
                      gravity=d["gravity"], dt=dt, safety_factor=safety, local_damping=local,
                      viscous_damping=viscous, skin=float(d["nl_skin"]), comm=comm)
-        engine._wall_points_known = [point.copy() for point in d["wall_point_known"]]
+        engine._wall_points_known = d["wall_point_known"].reshape(-1, 3).copy()
         engine._facet_vertices_known = [d[f"facet{k}_vertices_known"].copy() for k in range(len(facets))]
         serial_lists = "nl_perm" in d
         if serial_lists and comm is None:

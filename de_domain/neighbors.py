@@ -390,14 +390,16 @@ class NeighborList:
             return np.empty(0, np.int32)
         return self.perm[self.pair_js]
 
-    def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None):
+    def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None, ref_pos=None):
+        """Did particles (``pos`` against ``ref_pos``, default the positions of the last
+        build, in the same order), walls or vertices move more than the skin allows?"""
         if self.ref_pos is None or self.ref_pos.shape[0] != n_active or self.perm is None:
             return True
         if wall_point is None:
             wall_point = wall_normal = np.zeros((0, 3))
         if wall_point.shape != self.ref_wall_point.shape or not np.array_equal(wall_normal, self.ref_wall_normal):
             return True
-        dp = max_displacement(pos, self.ref_pos, n_active)
+        dp = max_displacement(pos, self.ref_pos if ref_pos is None else ref_pos, n_active)
         dv = max_displacement(vertices, self.ref_vertices, vertices.shape[0]) if vertices.shape[0] else 0.0
         if wall_point.shape[0]:
             dv = max(dv, max_displacement(wall_point, self.ref_wall_point, wall_point.shape[0]))

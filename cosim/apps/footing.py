@@ -203,6 +203,10 @@ class Model:
     soil_density: float = None  # kg/m³ of the FE soil (coupled)
     interface_impulse: np.ndarray = field(default_factory=lambda: np.zeros(3))  # since take_interface_impulse
 
+    def __post_init__(self):
+        # coupled: one DEM window per FE step, the sorted copies stay between windows
+        self.engine.keep_sorted = self.solid is not None
+
     @property
     def time(self):
         return self.engine.time

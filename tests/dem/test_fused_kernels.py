@@ -141,6 +141,41 @@ def test_in_place_and_sorted_paths_identical():
     assert a.time == b.time and a.step_count == b.step_count == 300
 
 
+@pytest.mark.parametrize("make", [loose_pile, split_box_pile])
+def test_sorted_copies_kept_between_runs_change_no_bit(make, monkeypatch):
+    """``keep_sorted``: windows of 1–7 steps on sorted copies left holding the state
+    between them (as the FE–DE coupling runs), through list rebuilds and spatial-order
+    refreshes, with the facets moved from outside between windows, reads of the
+    particles between some windows and a write into them, == an engine that writes back
+    after every run — to the bit, energies included."""
+    from de_domain import fused
+    monkeypatch.setattr(fused, "PERM_EVERY", 90)  # refresh the spatial order during the test
+    plain, kept = make(), make()
+    kept.keep_sorted = True
+    done = windows = held = 0
+    while done < 600:
+        n = 1 + windows % 7
+        for engine in (plain, kept):
+            for mesh in engine.facets:  # the FE's motion of the interface between two windows
+                mesh.vertices[:, 2] += 1e-7
+            engine.run(n)
+        held += kept._copies_hold_state
+        done += n
+        windows += 1
+        if windows % 5 == 0:
+            assert np.array_equal(plain.particles.pos, kept.particles.pos)  # read: written back first
+        if windows == 40:
+            for engine in (plain, kept):
+                engine.particles.vel[7] += 0.01  # written into the public arrays: gathered again
+    assert held == windows  # every window left the state in the copies
+    assert kept.neighbors.n_builds > 2 and kept.step_count > 2 * fused.PERM_EVERY
+    sa, sb = facet_snapshot(plain), facet_snapshot(kept)
+    for k in sa:
+        assert np.array_equal(sa[k], sb[k]), k
+    assert np.array_equal(plain.acceleration, kept.acceleration)
+    assert plain.energy() == kept.energy()
+
+
 def test_memory_per_particle_counts_every_array():
     engine = loose_pile()
     engine.run(20)
