@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 
-
 _ONLY_ARRAYS = {np.ndarray}
 
 

@@ -93,7 +93,18 @@ def test_both_models_from_one_case_and_their_comparison(runs):
     assert (runs / "comparison.png").exists()
 
 
-def test_two_ranks_run_the_same_model(runs, tmp_path):
+@pytest.fixture(scope="module")
+def two_ranks(runs, tmp_path_factory):
+    """The coupled tiny case under mpirun -n 2, from the 1-rank run's specimen: (case file, outputs)."""
+    folder = tmp_path_factory.mktemp("two_ranks")
+    case = _file_case(folder, runs / "coupled" / "specimen.npz")
+    res = cosim("run", str(case), "--out", str(folder / "out"), *overrides(generated=False), mpi=2)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert res.stdout.count("outputs: ") == 1
+    return case, folder / "out"
+
+
+def test_two_ranks_run_the_same_model(runs, two_ranks, tmp_path):
     """The coupled tiny case under mpirun -n 2, from the 1-rank run's specimen: at rest with the
     same balance, and the same load-settlement curve as one rank up to the chaos of a granular
     packing. The all-DEM model is bit-identical on 2 ranks; the coupled one is not, because the
@@ -101,20 +112,16 @@ def test_two_ranks_run_the_same_model(runs, tmp_path):
     any last-bit difference within a few hundred steps: a 1-rank run whose E differs in the
     15th digit deviates as much. So the 2-rank curve must stay as close to the 1-rank one as that
     perturbed run does (a factor 3 for the randomness of chaotic deviations)."""
-    specimen = runs / "coupled" / "specimen.npz"
-    case = _file_case(tmp_path, specimen)
-    res = cosim("run", str(case), "--out", str(tmp_path / "two"), *overrides(generated=False), mpi=2)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
-    assert res.stdout.count("outputs: ") == 1
+    case, two_out = two_ranks
     res = cosim("run", str(case), "--out", str(tmp_path / "perturbed"), *overrides(generated=False),
                 "--set", f"soil.E={2.0e6 * (1 + 1e-15)!r}")
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     one = json.loads((runs / "coupled" / "summary.json").read_text())
-    two = json.loads((tmp_path / "two" / "coupled" / "summary.json").read_text())
+    two = json.loads((two_out / "coupled" / "summary.json").read_text())
     assert two["ranks"] == 2 and one["ranks"] == 1 and two["grains"] == one["grains"]
     assert abs(two["rest"]["interface_force_over_weight"] - 1.0) < 0.01
     q1 = read_series(runs / "coupled" / "series.csv")["bearing_pressure"]
-    q2 = read_series(tmp_path / "two" / "coupled" / "series.csv")["bearing_pressure"]
+    q2 = read_series(two_out / "coupled" / "series.csv")["bearing_pressure"]
     qp = read_series(tmp_path / "perturbed" / "coupled" / "series.csv")["bearing_pressure"]
     ranks, perturbed = np.mean(np.abs(q2 - q1)) / np.mean(q1), np.mean(np.abs(qp - q1)) / np.mean(q1)
     print(f"mean |q difference| / mean q: 2 ranks {ranks:.3g}, E perturbed in the 15th digit {perturbed:.3g}")
@@ -191,15 +198,16 @@ def test_resume_without_a_checkpoint_is_one_message(tmp_path):
     assert res.returncode == 2 and "no footing checkpoint" in res.stderr
 
 
-def test_a_killed_coupled_loading_resumes_to_the_same_rows(runs, tmp_path):
-    """The coupled tiny case, killed during the loading (a checkpoint after every row), resumes
-    from its DEM and FE checkpoints to the rows of the uninterrupted run, to the last digit."""
-    import subprocess as sp
+def kill_during_loading(args, out, mpi=0):
+    """Start ``cosim run ARGS`` (under mpirun -n MPI if given) and SIGKILL it, every rank, once
+    the loading has checkpointed and written a few rows."""
+    import signal
     import time
-    out = tmp_path / "split"
-    sets = overrides({"footing.model": "coupled"}) + ["--set", "output.checkpoint_interval=0.05"]
-    proc = sp.Popen([str(COSIM), "run", str(CASE), "--out", str(out), *sets], stdout=sp.DEVNULL, stderr=sp.DEVNULL,
-                    env=ENV, cwd=ROOT)
+    cmd = [str(COSIM), "run", *args]
+    if mpi:
+        cmd = ["mpirun", "-n", str(mpi), "--bind-to", "none", *cmd]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV, cwd=ROOT,
+                            start_new_session=True)  # its own process group: mpirun and its ranks
     series = out / "coupled" / "series.csv"
     deadline = time.time() + 600
     while time.time() < deadline and proc.poll() is None:
@@ -208,13 +216,35 @@ def test_a_killed_coupled_loading_resumes_to_the_same_rows(runs, tmp_path):
             break
         time.sleep(0.05)
     assert proc.poll() is None, "the run ended before it could be killed"
-    proc.kill()
+    os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not (out / "coupled" / "summary.json").exists()
-    res = cosim("run", str(CASE), "--out", str(out), *sets, "--resume")
+
+
+def assert_resumed_to(reference, res, out):
+    """The resumed run wrote the uninterrupted run's rows and answer, to the last digit."""
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     assert "resumed the loading at row" in res.stdout
-    assert series.read_text() == (runs / "coupled" / "series.csv").read_text()
+    assert (out / "coupled" / "series.csv").read_text() == (reference / "coupled" / "series.csv").read_text()
     summary = json.loads((out / "coupled" / "summary.json").read_text())
-    assert summary["bearing_pressure_at"] == json.loads((runs / "coupled" / "summary.json").read_text())[
+    assert summary["bearing_pressure_at"] == json.loads((reference / "coupled" / "summary.json").read_text())[
         "bearing_pressure_at"]
+
+
+def test_a_killed_coupled_loading_resumes_to_the_same_rows(runs, tmp_path):
+    """The coupled tiny case, killed during the loading (a checkpoint after every row), resumes
+    from its DEM and FE checkpoints to the rows of the uninterrupted run, to the last digit."""
+    out = tmp_path / "split"
+    sets = overrides({"footing.model": "coupled"}) + ["--set", "output.checkpoint_interval=0.05"]
+    kill_during_loading([str(CASE), "--out", str(out), *sets], out)
+    assert_resumed_to(runs, cosim("run", str(CASE), "--out", str(out), *sets, "--resume"), out)
+
+
+def test_a_killed_two_rank_loading_resumes_to_the_same_rows(two_ranks, tmp_path):
+    """The same under mpirun -n 2 (DEM over both ranks, the FE soil partitioned), killed and
+    resumed on 2 ranks: the rows of the uninterrupted 2-rank run, to the last digit."""
+    case, reference = two_ranks
+    out = tmp_path / "split"
+    sets = overrides(generated=False) + ["--set", "output.checkpoint_interval=0.05"]
+    kill_during_loading([str(case), "--out", str(out), *sets], out, mpi=2)
+    assert_resumed_to(reference, cosim("run", str(case), "--out", str(out), *sets, "--resume", mpi=2), out)
