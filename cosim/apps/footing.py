@@ -31,7 +31,8 @@ The run, in both models:
    interval), the unbalanced force ratio.
 4. **Report** — ``summary.json`` (q at s/B = 2, 5, 10 %, the rest balance, wall-clock of
    each phase), ``load_settlement.png``, ``displacement_section.png`` (the grains in the x–z
-   section coloured by their displacement during loading), ParaView frames (particles, and
+   section coloured by their displacement during loading, and the FE soil's front face by
+   its own, on one scale), ParaView frames (particles, and
    the FE fields in ``fields.xdmf``), ``final_packing.npz``. When both models of the case have run, their
    load–settlement curves are compared in the case's folder (``comparison.csv``, ``.png``).
 
@@ -68,7 +69,7 @@ REST_COLUMNS = ["time", "interface_force_z", "grain_weight", "unbalanced_force_r
 REST_CHECK_TIME = 2e-3  # s of simulated time between the rest checks
 FRAMES = 5  # ParaView frames over the loading
 STATE = "footing_state.json"  # the loading loop's state at the last checkpoint (with checkpoint.npz)
-LOADING_START = "loading_start.npz"  # every grain's position when the loading began
+LOADING_START = "loading_start.npz"  # every grain's position (and FE node's displacement) when the loading began
 RELEASE_FRACTION = 0.02  # the generation plate is raised until it carries this x the self-weight stress at the bottom
 
 
@@ -447,9 +448,15 @@ def load(case, model, out_dir, name, state, resume=False):
     row_time = final / ft.rows / ft.velocity
     footing = model.footing
     start_path = out_dir / LOADING_START
+    fe_start = None
     if resume:
         z0, first_row = state["z0"], state["row"] + 1
-        start_grains = np.load(start_path)["position"] if is_root() else None
+        start_grains = fe_start = None
+        if is_root():
+            with np.load(start_path) as start:
+                start_grains = start["position"]
+                if "fe_displacement" in start:
+                    fe_start = start["fe_displacement"]
     else:
         grains = model.engine.global_particles()  # collective
         z0, first_row = surface_under(footing, grains), 1
@@ -458,9 +465,10 @@ def load(case, model, out_dir, name, state, resume=False):
         footing.reset_impulse()
         model.take_interface_impulse()  # the rest phase's is not the loading's
         start_grains = grains.pos.copy()
+        fe_start = fe_nodes(model.solid)[1] if model.solid is not None else None  # collective
         if is_root():
             tmp = start_path.with_name(start_path.stem + ".tmp.npz")
-            np.savez(tmp, position=start_grains)
+            np.savez(tmp, position=start_grains, **({} if fe_start is None else {"fe_displacement": fe_start}))
             tmp.replace(start_path)
     resume_time = model.time if resume else None
     rows = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
@@ -501,6 +509,10 @@ def load(case, model, out_dir, name, state, resume=False):
     progress.update(ft.rows, model.time, force=True)
     footing.velocity = np.zeros(3)
     grains = model.engine.global_particles()  # collective
+    soil = None
+    if model.solid is not None:
+        coordinates, displacement = fe_nodes(model.solid)  # collective
+        soil = None if fe_start is None else (coordinates, displacement - fe_start)
     if is_root():
         from de_domain.packing import save_packing
         save_packing(out_dir / "final_packing.npz", grains.pos, grains.radius)
@@ -509,7 +521,7 @@ def load(case, model, out_dir, name, state, resume=False):
     if rows is None:
         return None
     rows.close()
-    plot_displacement_section(case, model, start_grains, grains, out_dir / "displacement_section.png")
+    plot_displacement_section(case, model, start_grains, grains, out_dir / "displacement_section.png", soil)
     return read_series(out_dir / "series.csv")
 
 
@@ -555,6 +567,20 @@ def resumed_model(case, case_path, out_dir, built, state):
                  int(round(solid.dt / engine.dt)), state["soil_density"])
 
 
+def fe_nodes(solid):
+    """(coordinates, displacement) of every FE node, in mesh-input order, on rank 0 (None on
+    the others); collective."""
+    owned = slice(0, solid.n_owned_nodes)
+    rows = np.hstack([solid.input_node_index[owned, None].astype(np.float64), solid.node_coordinates[owned],
+                      solid.displacement[owned]])
+    parts = mpi_comm().gather(rows, root=0)
+    if not is_root():
+        return None, None
+    rows = np.concatenate(parts)
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    return rows[:, 1:4], rows[:, 4:7]
+
+
 def surface_under(footing, grains):
     """Top of the highest grain under the footing (its x range widened by each grain's radius), m."""
     x0, x1 = footing.vertices[:, 0].min(), footing.vertices[:, 0].max()
@@ -589,6 +615,21 @@ def _plt():
     return plt
 
 
+def _plot_fe_face(ax, geometry, coordinates, displacement, top):
+    """|Δu| of the FE soil's front face (y = its smallest y), mm, filled contours over the
+    face's nodes with the zone's trench left empty, on the colour scale 0 … ``top``."""
+    from matplotlib.tri import Triangulation
+    face = np.isclose(coordinates[:, 1], coordinates[:, 1].min(), rtol=0.0, atol=1e-9 * geometry.width)
+    x, z = coordinates[face, 0], coordinates[face, 2]
+    mesh = Triangulation(x, z)
+    cx, cz = x[mesh.triangles].mean(axis=1), z[mesh.triangles].mean(axis=1)
+    inside = (cx > geometry.zone_x0) & (cx < geometry.zone_x0 + geometry.zone_width) & (cz > geometry.zone_bottom)
+    mesh.set_mask(inside)
+    levels = np.linspace(0.0, top, 21)
+    ax.tricontourf(mesh, np.clip(1e3 * np.linalg.norm(displacement[face], axis=1), 0.0, top), levels=levels,
+                   cmap="viridis")
+
+
 def plot_load_settlement(curves, path, title):
     """q against s/B for each model in ``curves`` ({label: series})."""
     plt = _plt()
@@ -607,22 +648,27 @@ def plot_load_settlement(curves, path, title):
     plt.close(fig)
 
 
-def plot_displacement_section(case, model, before, after, path):
+def plot_displacement_section(case, model, before, after, path, soil=None):
     """The grains of the slice seen along y (an x–z section), coloured by |Δx| during the
-    loading; the FE zone's outline and the footing drawn on top."""
+    loading, and (coupled, ``soil`` = FE node coordinates and Δu) the FE soil's front face
+    coloured by |Δu| on the same scale; the zone's outline and the footing drawn on top."""
     plt = _plt()
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle, Rectangle
     geometry = Geometry.of(case)
     disp = np.linalg.norm(after.pos - before, axis=1)
+    top = 1e3 * float(np.percentile(disp, 99.5)) or 1.0
     order = np.argsort(after.pos[:, 1])  # front grains (small y) drawn last
     fig, ax = plt.subplots(figsize=(8.0, 8.0 * geometry.depth / geometry.width + 1.2))
+    if soil is not None:
+        _plot_fe_face(ax, geometry, *soil, top)
     circles = PatchCollection([Circle((after.pos[i, 0], after.pos[i, 2]), after.radius[i]) for i in order[::-1]],
                               cmap="viridis", linewidths=0)
     circles.set_array(1e3 * disp[order[::-1]])
-    circles.set_clim(0.0, 1e3 * float(np.percentile(disp, 99.5)) or 1.0)
+    circles.set_clim(0.0, top)
     ax.add_collection(circles)
-    fig.colorbar(circles, ax=ax, label="grain displacement during loading [mm]", shrink=0.8)
+    label = "displacement during loading [mm]" if soil is not None else "grain displacement during loading [mm]"
+    fig.colorbar(circles, ax=ax, label=label, shrink=0.8)
     ax.add_patch(Rectangle((0, 0), geometry.width, geometry.depth, fill=False, lw=1.0, color="0.3"))
     if model.kind == "coupled":
         ax.add_patch(Rectangle((geometry.zone_x0, geometry.zone_bottom), geometry.zone_width, geometry.zone_depth,

@@ -93,6 +93,19 @@ def test_both_models_from_one_case_and_their_comparison(runs):
     assert (runs / "comparison.png").exists()
 
 
+def test_the_displacement_section_has_the_fe_soil_of_the_coupled_model(runs):
+    """loading_start.npz keeps every FE node's displacement at the loading's start (for the
+    picture's Δu, also after a resume): one row per node, moved by the rest phase."""
+    with np.load(runs / "coupled" / "loading_start.npz") as start:
+        u0 = start["fe_displacement"]
+    fields = (runs / "coupled" / "fields.xdmf").read_text()
+    assert f'Dimensions="{u0.shape[0]} 3"' in fields  # as many nodes as the FE field output
+    assert np.all(np.isfinite(u0)) and np.abs(u0).max() > 0.0  # the soil settled under the grains
+    with np.load(runs / "dem" / "loading_start.npz") as start:
+        assert "fe_displacement" not in start.files
+    assert (runs / "coupled" / "displacement_section.png").exists()
+
+
 @pytest.fixture(scope="module")
 def two_ranks(runs, tmp_path_factory):
     """The coupled tiny case under mpirun -n 2, from the 1-rank run's specimen: (case file, outputs)."""
