@@ -120,6 +120,15 @@ def main(argv=None):
         return EXIT_RUN_FAILED
 
 
+def _finish_interrupted_commit(out_dir):
+    """A run killed while making its last checkpoint current left a commit record: finish it
+    (rank 0), so that --resume reads the files of one instant (cosim.outputs.commit_checkpoint)."""
+    from cosim.outputs import finish_commit, is_root, mpi_comm
+    if is_root():
+        finish_commit(out_dir)
+    mpi_comm().Barrier()
+
+
 def _prepare(args):
     """The whole validation ``cosim run`` does before computing: the case file, the output
     folder, then the kind's own inputs (packings, meshes, time steps, checkpoint)."""
@@ -131,6 +140,8 @@ def _prepare(args):
     check_output_folder(out_dir)
     app = importlib.import_module(f"cosim.apps.{case.case.kind}")
     resume = getattr(args, "resume", False)
+    if resume:
+        _finish_interrupted_commit(out_dir)
     built = app.prepare(case, args.case, out_dir, resume)
     return app, Prepared(case, resolved, Path(args.case), out_dir, resume, built)
 

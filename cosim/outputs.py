@@ -86,14 +86,54 @@ def save_engine_checkpoint(engine, path):
         engine.domain.comm.Barrier()
 
 
+CHECKPOINT_COMMIT = "checkpoint.commit.json"  # the files of a checkpoint being made current
+
+
+def staged(path):
+    """Where a file of a checkpoint of several files is written before the set is committed."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.staged{path.suffix}")
+
+
+def commit_checkpoint(out_dir, finals, comm=None):
+    """Make the staged files (:func:`staged`, written and complete) of one checkpoint the current
+    ones, all or none; ``finals``: this rank's files, by their final names; collective. Rank 0
+    writes a commit record naming every rank's files, renames each staged file onto its name
+    and removes the record. A kill among the renames leaves the record, and
+    :func:`finish_commit` completes them on ``--resume``: the files never mix two instants."""
+    comm = comm or mpi_comm()
+    comm.Barrier()  # every rank's staged files are complete
+    names = comm.gather([Path(f).name for f in finals], root=0)
+    if comm.rank == 0:
+        atomic_write_text(Path(out_dir) / CHECKPOINT_COMMIT, json.dumps(sorted({n for part in names for n in part})))
+        finish_commit(out_dir)
+    comm.Barrier()
+
+
+def finish_commit(out_dir):
+    """The renames of an interrupted :func:`commit_checkpoint` (rank 0; nothing if none)."""
+    record = Path(out_dir) / CHECKPOINT_COMMIT
+    if not record.exists():
+        return
+    for name in json.loads(record.read_text()):
+        source = staged(Path(out_dir) / name)
+        if source.exists():
+            os.replace(source, Path(out_dir) / name)
+    record.unlink()
+
+
 def save_lab_checkpoint(out_dir, engine, state_name, state):
     """A lab test's checkpoint: the engine (``checkpoint.npz``, collective) and its loop and
-    servo ``state`` (JSON ``state_name``, rank 0), naming the step it belongs to; each written
-    to a temporary file and renamed."""
-    save_engine_checkpoint(engine, Path(out_dir) / "checkpoint.npz")
+    servo ``state`` (JSON ``state_name``, rank 0), naming the step it belongs to; committed
+    together (:func:`commit_checkpoint`)."""
+    out_dir = Path(out_dir)
+    save_engine_checkpoint(engine, staged(out_dir / "checkpoint.npz"))
+    finals = []
     if is_root():
         state = {**state, "step": engine.step_count}
-        atomic_write_text(Path(out_dir) / state_name, json.dumps(state, default=lambda x: x.item()))
+        atomic_write_text(staged(out_dir / state_name), json.dumps(state, default=lambda x: x.item()))
+        finals = [out_dir / "checkpoint.npz", out_dir / state_name]
+    commit_checkpoint(out_dir, finals)
 
 
 def load_lab_checkpoint(out_dir, state_name, comm=None):

@@ -30,10 +30,12 @@ from cosim.outputs import (
     CsvSeries,
     ProgressLine,
     PvdCollection,
+    commit_checkpoint,
     is_root,
     mpi_comm,
     save_engine_checkpoint,
     say,
+    staged,
     write_run_metadata,
 )
 from de_domain.comm import sum_in_rank_order
@@ -75,7 +77,7 @@ def prepare(case, case_path, out_dir, resume):
         if "interface_held" in state:  # (before the last window's impulse joined it; absent: none)
             interface.held = state["interface_held"].copy()
         engine = dem_app.load_checkpoint(case_path, dem_checkpoint, comm=distributed)
-        if abs(engine.time - solid.time) > 0.5 * engine.dt:  # killed between the two renames
+        if abs(engine.time - solid.time) > 0.5 * engine.dt:  # files of two runs mixed by hand
             raise CaseError(case_path, "--resume", str(dem_checkpoint),
                             f"the DEM checkpoint (t = {engine.time:.6e} s) and the FE checkpoint (t = "
                             f"{solid.time:.6e} s) are of different instants; run without --resume")
@@ -95,17 +97,22 @@ def prepare(case, case_path, out_dir, resume):
 
 
 def save_checkpoint(out_dir, solid, engine, interface):
-    """The DEM (one file, collective) and this rank's FE state, each written to a
-    temporary file and renamed (a kill between the two renames leaves files of two
-    instants, which prepare() refuses). The impulse in transit is the interface facets'
-    vertex impulse in the DEM file, and the impulse held back by the smoothing (before that
-    window's joined it) in the FE files; the FE's interface force is made again from the two on
-    resume."""
+    """The DEM (one file, collective) and every rank's FE state, committed together
+    (:func:`cosim.outputs.commit_checkpoint`); collective."""
+    commit_checkpoint(out_dir, stage_checkpoint(out_dir, solid, engine, interface))
+
+
+def stage_checkpoint(out_dir, solid, engine, interface):
+    """Write the DEM checkpoint (collective) and this rank's FE state to their staged files;
+    returns this rank's files by their final names, for the commit. The impulse in transit is
+    the interface facets' vertex impulse in the DEM file, and the impulse held back by the
+    smoothing (before that window's joined it) in the FE files; the FE's interface force is made
+    again from the two on resume."""
     comm = mpi_comm()
     dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
-    save_engine_checkpoint(engine, dem_checkpoint)
-    fe_app.write_checkpoint(solid, fe_checkpoint, extra={"interface_held": interface.held_before})
-    comm.Barrier()
+    save_engine_checkpoint(engine, staged(dem_checkpoint))
+    fe_app.write_checkpoint(solid, staged(fe_checkpoint), extra={"interface_held": interface.held_before})
+    return [fe_checkpoint] + ([dem_checkpoint] if comm.rank == 0 else [])
 
 
 def time_steps(dem_dt, fe_dt_stable, subcycles=None):

@@ -54,10 +54,12 @@ from cosim.outputs import (
     ProgressLine,
     PvdCollection,
     atomic_write_text,
+    commit_checkpoint,
     is_root,
     mpi_comm,
     save_engine_checkpoint,
     say,
+    staged,
     write_run_metadata,
 )
 from cosim.specimen import SpecimenBox, curve_of, make_specimen, read_specimen
@@ -526,16 +528,19 @@ def load(case, model, out_dir, name, state, resume=False):
 
 
 def _save_checkpoint(out_dir, model, state):
-    """The DEM (and, coupled, the FE with the impulse in transit: ``coupled.save_checkpoint``)
-    and the loading loop's ``state`` (JSON, rank 0), each to a temporary file, then renamed;
-    collective."""
+    """The DEM (and, coupled, the FE with the impulse in transit: ``coupled.stage_checkpoint``)
+    and the loading loop's ``state`` (JSON, rank 0), committed together
+    (:func:`cosim.outputs.commit_checkpoint`); collective."""
     from cosim.apps import coupled as coupled_app
     if model.solid is not None:
-        coupled_app.save_checkpoint(out_dir, model.solid, model.engine, model.interface)
+        finals = coupled_app.stage_checkpoint(out_dir, model.solid, model.engine, model.interface)
     else:
-        save_engine_checkpoint(model.engine, out_dir / "checkpoint.npz")
+        save_engine_checkpoint(model.engine, staged(out_dir / "checkpoint.npz"))
+        finals = [out_dir / "checkpoint.npz"] if is_root() else []
     if is_root():
-        atomic_write_text(out_dir / STATE, json.dumps({**state, "step": model.engine.step_count}, indent=1))
+        atomic_write_text(staged(out_dir / STATE), json.dumps({**state, "step": model.engine.step_count}, indent=1))
+        finals.append(out_dir / STATE)
+    commit_checkpoint(out_dir, finals)
 
 
 def resumed_model(case, case_path, out_dir, built, state):
@@ -556,7 +561,7 @@ def resumed_model(case, case_path, out_dir, built, state):
     solid, interface = build_soil(case, Geometry.of(case), ids["interface"], state["soil_density"],
                                   built["soil_mesh"])
     fe_state = fe_app.restore_checkpoint(solid, case_path, out_dir, coupled_app.FE_CHECKPOINT_STEM)
-    if abs(engine.time - solid.time) > 0.5 * engine.dt:  # killed between the renames
+    if abs(engine.time - solid.time) > 0.5 * engine.dt:  # files of two runs mixed by hand
         raise CaseError(case_path, "--resume", str(out_dir / "checkpoint.npz"),
                         "the DEM and FE checkpoints are of different instants; run without --resume")
     if "interface_held" in fe_state:

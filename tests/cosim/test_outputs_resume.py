@@ -1,9 +1,21 @@
 """On resume the CSV rows and PVD frames kept are decided on times read back from the files,
 i.e. rounded to 10 significant digits: the row of the resume instant must be recognised
-whichever way its time was rounded (a killed direct shear run once lost it)."""
+whichever way its time was rounded (a killed direct shear run once lost it). A checkpoint of
+several files becomes current all at once: a kill among its renames is completed on resume
+(a killed footing run once left a DEM checkpoint one row ahead of its loop state)."""
+import json
+
 import pytest
 
-from cosim.outputs import CsvSeries, PvdCollection, kept_on_resume
+from cosim.outputs import (
+    CHECKPOINT_COMMIT,
+    CsvSeries,
+    PvdCollection,
+    commit_checkpoint,
+    finish_commit,
+    kept_on_resume,
+    staged,
+)
 
 
 @pytest.mark.parametrize("rounded", [0.02165533079, 0.02165533080])  # t = 0.021655330795 rounded down / up
@@ -27,3 +39,34 @@ def test_series_and_collection_keep_what_precedes_the_resume_instant(tmp_path):
     resumed.close()
     assert (tmp_path / "s.csv").read_text().splitlines()[1:] == ["1e-13,0", "0.1,1"]
     assert len(PvdCollection(tmp_path / "p.pvd", resume_time=0.2).entries) == 3
+
+
+def test_a_checkpoint_of_several_files_is_committed_whole(tmp_path):
+    for name, text in (("checkpoint.npz", "dem 1"), ("state.json", "row 1")):
+        (tmp_path / name).write_text(text)
+    for name, text in (("checkpoint.npz", "dem 2"), ("state.json", "row 2")):
+        staged(tmp_path / name).write_text(text)
+    commit_checkpoint(tmp_path, [tmp_path / "checkpoint.npz", tmp_path / "state.json"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["checkpoint.npz", "state.json"]
+    assert (tmp_path / "checkpoint.npz").read_text() == "dem 2" and (tmp_path / "state.json").read_text() == "row 2"
+
+
+def test_a_commit_killed_among_its_renames_is_finished_on_resume(tmp_path):
+    """Killed after the DEM file was renamed and before the state was: the record is left, and
+    finish_commit renames the rest, so that both files are of the new instant."""
+    (tmp_path / "checkpoint.npz").write_text("dem 2")          # renamed before the kill
+    (tmp_path / "state.json").write_text("row 1")              # not yet
+    staged(tmp_path / "state.json").write_text("row 2")
+    (tmp_path / CHECKPOINT_COMMIT).write_text(json.dumps(["checkpoint.npz", "state.json"]))
+    finish_commit(tmp_path)
+    assert (tmp_path / "state.json").read_text() == "row 2"
+    assert not (tmp_path / CHECKPOINT_COMMIT).exists() and not staged(tmp_path / "state.json").exists()
+    finish_commit(tmp_path)  # no record: nothing to do
+
+
+def test_staged_files_of_a_checkpoint_killed_while_being_written_are_ignored(tmp_path):
+    """Killed before the commit record: the current files stay the previous instant's."""
+    (tmp_path / "state.json").write_text("row 1")
+    staged(tmp_path / "state.json").write_text("row 2, half writt")
+    finish_commit(tmp_path)
+    assert (tmp_path / "state.json").read_text() == "row 1"

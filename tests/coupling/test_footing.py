@@ -220,7 +220,7 @@ def kill_during_loading(args, out, mpi=0):
     if mpi:
         cmd = ["mpirun", "-n", str(mpi), "--bind-to", "none", *cmd]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV, cwd=ROOT,
-                            start_new_session=True)  # its own process group: mpirun and its ranks
+                            start_new_session=True)  # its own session: mpirun and its ranks
     series = out / "coupled" / "series.csv"
     deadline = time.time() + 600
     while time.time() < deadline and proc.poll() is None:
@@ -229,9 +229,30 @@ def kill_during_loading(args, out, mpi=0):
             break
         time.sleep(0.05)
     assert proc.poll() is None, "the run ended before it could be killed"
-    os.killpg(proc.pid, signal.SIGKILL)
+    # every process of the session: OpenMPI puts each rank in a process group of its own, and
+    # a rank that outlived mpirun would go on writing into the folder the resumed run uses
+    while members := session_members(proc.pid):
+        for pid in members:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        time.sleep(0.05)
     proc.wait()
     assert not (out / "coupled" / "summary.json").exists()
+
+
+def session_members(sid):
+    """Process ids of the live processes of session ``sid`` (from /proc/<pid>/stat)."""
+    members = []
+    for entry in os.listdir("/proc"):
+        try:
+            fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if entry.isdigit() and int(fields[3]) == sid and fields[0] != "Z":
+            members.append(int(entry))
+    return members
 
 
 def assert_resumed_to(reference, res, out):
