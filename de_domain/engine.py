@@ -45,8 +45,7 @@ from .state import (
 )
 from .walls import FacetMesh, PlaneWall
 
-SORTED_MIN_STEPS = 8  # runs at least this long use spatially sorted copies of the particle arrays
-# (every run does, with Engine.keep_sorted)
+SORTED_MIN_STEPS = 8  # runs this long (every run, with Engine.keep_sorted) use spatially sorted copies
 STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
                "elastic_normal", "elastic_tangential", "elastic_rolling")
 RATE_TERMS = ("work_walls", "work_boundary", "friction", "contact_damping", "background_damping")
