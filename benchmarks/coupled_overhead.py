@@ -16,12 +16,15 @@ rank). A worker prepares the case as ``cosim run`` does, warms up, then times, R
 times interleaved, each of the three first in turn (so that the machine's drift and the
 order hit all three alike):
 
-* ``coupled``: BLOCK coupled FE steps (``cosim.apps.coupled.coupled_step``), with the time
-  split into FE step, interface out (vertex positions and velocities to the DEM), DEM
-  window, interface in (impulse to FE forces);
+* ``coupled``: BLOCK coupled FE steps as ``cosim run`` makes them
+  (``cosim.compiled_coupling.CoupledStepper``, ``cosim.apps.coupled.PROGRESS_CHUNK`` FE
+  steps a call: compiled calls on one rank, step by step on several);
+* ``step by step`` (one rank only): the same from Python (``cosim.apps.coupled.coupled_step``,
+  what several ranks run), with the time split into FE step, interface out (vertex
+  positions and velocities to the DEM), DEM window, interface in (impulse to FE forces);
 * ``DEM alone``: the same engine for BLOCK × subcycles DEM steps in one ``Engine.run`` call,
   against the interface as fixed facets (vertex velocities zero);
-* ``FE alone``: BLOCK ``ExplicitSolid.step()`` calls.
+* ``FE alone``: ``ExplicitSolid.run(BLOCK)`` (one compiled call on one rank).
 
 and prints the medians per FE step and ``overhead = coupled / (DEM alone + FE alone)``
 (target ≤ 1.10), with particle-steps/s and the neighbour-list builds per 1,000 DEM steps in
@@ -76,6 +79,7 @@ def worker(case, subcycles, out_json):
     from cosim.apps import coupled
     from cosim.apps import dem as dem_app
     from cosim.case import load_case
+    from cosim.compiled_coupling import CoupledStepper
 
     comm = MPI.COMM_WORLD
     loaded, _ = load_case(FLAGSHIP, case_overrides(case, subcycles))
@@ -89,8 +93,13 @@ def worker(case, subcycles, out_json):
         return comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
 
     parts = np.zeros(4)  # FE step, interface out, DEM window, interface in
+    stepper = CoupledStepper(solid, interface=interface, engine=engine, subcycles=n_sub)
 
     def coupled_block(steps):
+        for start in range(0, steps, coupled.PROGRESS_CHUNK):
+            stepper.run(min(coupled.PROGRESS_CHUNK, steps - start), coupled.coupled_step)
+
+    def step_by_step_block(steps):
         for _ in range(steps):
             t0 = time.perf_counter()
             solid.step()
@@ -107,21 +116,26 @@ def worker(case, subcycles, out_json):
         engine.run(steps * n_sub)
 
     def fe_block(steps):
-        for _ in range(steps):
-            solid.step()
+        solid.run(steps)
 
     trial = elapsed(lambda: coupled_block(20)) / 20
     block = max(20, int(comm.bcast(MIN_SECONDS / trial, root=0)))
-    times = {"coupled": [], "dem": [], "fe": []}
+    blocks = [("coupled", coupled_block if stepper.compiled else step_by_step_block), ("dem", dem_block),
+              ("fe", fe_block)]
+    if stepper.compiled:
+        blocks.append(("step_by_step", step_by_step_block))
+    times = {kind: [] for kind, _ in blocks}
     builds = {"coupled": 0, "dem": 0}  # neighbour-list builds (rank 0) during the timed blocks
-    blocks = [("coupled", coupled_block), ("dem", dem_block), ("fe", fe_block)]
     for repeat in range(REPEATS):
         parts[:] = 0.0
-        for kind, work in blocks[repeat % 3:] + blocks[:repeat % 3]:  # each block first in turn
+        first = repeat % len(blocks)
+        for kind, work in blocks[first:] + blocks[:first]:  # each block first in turn
             before = engine.neighbors.n_builds
             times[kind].append(elapsed(lambda work=work: work(block)) / block)
             if kind in builds:
                 builds[kind] += engine.neighbors.n_builds - before
+    if not stepper.compiled:  # the coupled block was step by step
+        times["step_by_step"] = times["coupled"]
     split = np.zeros(4)
     comm.Allreduce(parts, split, op=MPI.MAX)
     split /= block
@@ -132,7 +146,9 @@ def worker(case, subcycles, out_json):
     row = {"case": case, "grains": int(n_grains), "facets": int(len(interface.facets.triangles)),
            "fe_cells": int(solid.mesh.topology.index_map(3).size_global), "subcycles": n_sub, "ranks": comm.size,
            "block": block, "coupled_us": 1e6 * med["coupled"], "dem_us": 1e6 * med["dem"], "fe_us": 1e6 * med["fe"],
-           "overhead": med["coupled"] / (med["dem"] + med["fe"]),
+           "overhead": med["coupled"] / (med["dem"] + med["fe"]), "compiled": stepper.compiled,
+           "step_by_step_us": 1e6 * med["step_by_step"],
+           "step_by_step_overhead": med["step_by_step"] / (med["dem"] + med["fe"]),
            "split_us": dict(zip(("fe", "out", "dem", "in"), (1e6 * split).tolist(), strict=True)),
            "particle_steps_per_s": n_grains * n_sub / med["coupled"],
            "builds_per_1000_steps": {k: 1000.0 * v / (REPEATS * block * n_sub) for k, v in builds.items()}}
@@ -165,8 +181,8 @@ def main():
                OMPI_MCA_rmaps_base_oversubscribe="1")
     rows = []
     print(f"{'case':9s} {'grains':>7s} {'facets':>6s} {'sub':>4s} {'ranks':>5s} | {'coupled':>9s} {'DEM alone':>9s} "
-          f"{'FE alone':>9s} {'overhead':>8s} | split of a coupled step: FE / out / DEM / in [us] | particle-steps/s "
-          "| list builds per 1000 DEM steps: coupled / DEM alone")
+          f"{'FE alone':>9s} {'overhead':>8s} | step by step, overhead | split of a step-by-step step: FE / out / "
+          "DEM / in [us] | particle-steps/s | list builds per 1000 DEM steps: coupled / DEM alone")
     for case in args.cases:
         for subcycles in args.subcycles:
             for ranks in args.ranks:
@@ -181,7 +197,8 @@ def main():
                 s, b = row["split_us"], row["builds_per_1000_steps"]
                 print(f"{case:9s} {row['grains']:7d} {row['facets']:6d} {row['subcycles']:4d} {ranks:5d} | "
                       f"{row['coupled_us']:7.0f}us {row['dem_us']:7.0f}us {row['fe_us']:7.0f}us "
-                      f"{row['overhead']:7.2f}x | "
+                      f"{row['overhead']:7.2f}x | {row['step_by_step_us']:7.0f}us "
+                      f"{row['step_by_step_overhead']:5.2f}x | "
                       f"{s['fe']:7.0f} / {s['out']:5.0f} / {s['dem']:7.0f} / {s['in']:4.0f}"
                       f" | {row['particle_steps_per_s']:.3g} | {b['coupled']:.1f} / {b['dem']:.1f}", flush=True)
     (OUT / "coupled_overhead.json").write_text(json.dumps(rows, indent=1))

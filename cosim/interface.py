@@ -68,7 +68,7 @@ class Interface:
         self.smoothing_time = float(smoothing_time)
         self.held = np.zeros_like(positions)         # impulse held back by the smoothing (every vertex)
         self.held_before = self.held.copy()          # ... before the last receive_forces (for checkpoints)
-        self.released = self.facets.vertex_impulse   # impulse handed to the FE's next step (every vertex)
+        self.released = np.zeros_like(positions)     # impulse handed to the FE's next step (every vertex)
         self.owned_vertices = self._vertex_of_row[self._rows]  # facet vertex of each owned node
         self.nodal_area = nodal_areas(positions, tri)[self.owned_vertices]  # of this rank's owned nodes
 
@@ -95,13 +95,17 @@ class Interface:
         from the window's and the held one (module docstring)."""
         impulse = self.facets.vertex_impulse
         if self.smoothing_time > 0.0:
-            self.held_before = self.held
+            self.held_before[:] = self.held
             total = self.held + impulse
-            self.released = -math.expm1(-window / self.smoothing_time) * total
-            self.held = total - self.released
+            np.multiply(self.release_fraction(window), total, out=self.released)
+            np.subtract(total, self.released, out=self.held)
         else:
-            self.released = impulse
+            self.released[:] = impulse
         self.solid.external_force[self.owned_nodes] = self.released[self.owned_vertices] / window
+
+    def release_fraction(self, window):
+        """β = 1 − exp(−Δt_FE/τ) of the smoothing (module docstring); 1 without."""
+        return -math.expm1(-window / self.smoothing_time) if self.smoothing_time > 0.0 else 1.0
 
     def pending_impulse(self):
         """Σ impulse collected by the DEM and not yet applied to the FE: released for the next FE

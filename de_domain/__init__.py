@@ -52,17 +52,20 @@ the cores, ``OMP_WAIT_POLICY=PASSIVE`` when they do not) on import, so
 import de_domain before the first ``numba.set_num_threads``/parallel call.
 
 Developer notes: kernels are ``numba.njit(cache=True)``, and their cache entries are
-stamped with a digest of every de_domain source (``de_domain.kernel_cache``): an edit
-anywhere in the package recompiles every kernel, so a cached caller never runs a
+stamped with a digest of every de_domain source (``numba_support.kernel_cache``): an
+edit anywhere in the package recompiles every kernel, so a cached caller never runs a
 stale callee. The kernels take their state as the named tuples of
 ``de_domain.state``. Results are bit-identical for any Numba thread count, any Verlet
 rebuild frequency and either storage path (fixed-order reductions, canonically
 sorted neighbour lists; tests/dem/test_fused_kernels.py).
 """
-from . import kernel_cache as _kernel_cache
+from pathlib import Path as _Path
+
+from numba_support import kernel_cache as _kernel_cache
+
 from . import threading as _threading
 
-_kernel_cache.install()  # before the first njit(cache=True) kernel is defined (see de_domain/kernel_cache.py)
+_kernel_cache.install(_Path(__file__).parent)  # before the first njit(cache=True) kernel is defined
 _threading.configure()  # before the first parallel launch (see de_domain/threading.py)
 
 from .engine import Engine  # noqa: E402

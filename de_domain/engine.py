@@ -19,9 +19,10 @@ import math
 
 import numpy as np
 
+from numba_support.dispatch import CachedEntry
+
 from . import fused
 from .contact_laws import HERTZ, LAWS
-from .dispatch import CachedEntry
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
 from .neighbors import ContactRecords, NeighborList
 from .particles import ARRAY_FIELDS, Particles
@@ -262,9 +263,65 @@ class Engine:
             todo = min(nsteps - done, self.neighbors.perm_step + fused.PERM_EVERY - self.step_count)
             done += self._advance(todo, walls, facet_state)
 
+    def start_external_run(self):
+        """For a caller that calls :func:`fused.advance` from its own compiled loop (the
+        FE–DE coupling, :mod:`cosim.compiled_coupling`): what :meth:`run` does before its
+        kernel call — boundary jumps booked, lists rebuilt if due, the state in the sorted
+        copies — and the kernel's arguments after ``nsteps``: the seven named tuples of
+        :mod:`de_domain.state`, the energy books and the clock. The facet vertices, their
+        velocities and impulses are the arrays of the returned ``FacetMeshes``, all meshes
+        concatenated (mesh k's rows from ``facet_rows(k)``); the caller may set them between
+        kernel calls, and books the work of what it moves (:func:`fused.facet_jump_work`).
+        Then :meth:`end_external_run`. Returns None, and does nothing, when the lists are
+        due for a rebuild or the spatial order for a refresh (:meth:`run` does those), and
+        for a distributed engine."""
+        if self.domain is not None:
+            return None
+        walls = self._wall_arrays()
+        vertices, vertex_velocity = self._gather_facets()
+        nl = self.neighbors
+        if nl.perm is None or self.steps_before_reorder() <= 0 or self._rebuild_due(vertices, walls[0], walls[1]):
+            return None
+        self._book_boundary_jumps(walls[0], vertices)
+        copies = self._sorted_copies()
+        impulse = self._facet_impulse
+        for k, mesh in enumerate(self.facets):
+            impulse[self._vertex_offsets[k]:self._vertex_offsets[k + 1]] = mesh.vertex_impulse
+        return self._kernel_state(walls, (vertices, vertex_velocity, impulse), copies), self._books, \
+            self._clock_at_start()
+
+    def steps_before_reorder(self):
+        """DEM steps left before the spatial order is refreshed (a run stops there)."""
+        return self.neighbors.perm_step + fused.PERM_EVERY - self.step_count
+
+    def facet_rows(self, k):
+        """Rows of facet mesh ``k`` in the concatenated vertex arrays."""
+        return slice(self._vertex_offsets[k], self._vertex_offsets[k + 1])
+
+    @property
+    def boundary_jump_work(self):
+        """Work (J) of walls and facet vertices displaced from outside, booked so far."""
+        return self._jump_work
+
+    def end_external_run(self, steps, jump_work):
+        """After :meth:`start_external_run` and ``steps`` kernel steps: the clock, the walls'
+        and facets' state handed back to their objects (as after :meth:`run`), the facet
+        velocities too; ``jump_work``: :attr:`boundary_jump_work` with the caller's
+        bookings added, window by window (the order :meth:`run` adds them in)."""
+        if not self.keep_sorted:
+            self._write_back()
+        walls = self._walls_state
+        self.time = float(self._clock[CLOCK_TIME])
+        self.step_count += int(steps)
+        self._finish_walls(walls[0])
+        self._finish_facets(self._facet_vertices, self._facet_impulse)
+        for k, mesh in enumerate(self.facets):
+            mesh.vertex_velocity[:] = self._facet_vertex_velocity[self.facet_rows(k)]
+        self._jump_work = float(jump_work)
+
     def _wall_arrays(self):
         """(point, normal, velocity, material) of the plane walls, in arrays the engine keeps
-        (the same objects every call: see :mod:`de_domain.dispatch`)."""
+        (the same objects every call: see :mod:`numba_support.dispatch`)."""
         n = len(self.walls)
         if self._walls_state is None or len(self._walls_state[3]) != n:
             self._walls_state = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int32))
@@ -461,7 +518,7 @@ class Engine:
             known = self._facet_vertices_known[k]
             now = vertices[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
             if not np.array_equal(now, known):
-                work -= float(np.sum(mesh.vertex_force * (now - known)))
+                work += fused.facet_jump_work(mesh.vertex_force, now, known)
                 known[:] = now
         if self.domain is None or self.domain.comm.rank == 0:  # the walls are global: book once
             self._jump_work += work

@@ -408,6 +408,18 @@ def _move_boundaries(settings, walls, meshes, candidates):
     return dw2
 
 
+@njit(cache=True, error_model="numpy")
+def facet_jump_work(vertex_force, now, known):
+    """Work of facet vertices displaced from outside between two runs, with the last step's
+    vertex forces (force on the facets): W = −Σ_v F_v·(x_v,now − x_v,known), summed vertex by
+    vertex (the same bits for the engine and for a compiled caller)."""
+    work = 0.0
+    for v in range(now.shape[0]):
+        for d in range(3):
+            work -= vertex_force[v, d] * (now[v, d] - known[v, d])
+    return work
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, books, clock):
     """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the

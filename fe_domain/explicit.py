@@ -64,9 +64,19 @@ from dolfinx.la import ScatterMode
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fe_domain import forms, jit
-from fe_domain.boundary import BodyForce, Fixed, Material, NormalPressure, PrescribedVelocity, Traction
+from fe_domain import compiled, forms, jit
+from fe_domain.boundary import (
+    BodyForce,
+    Fixed,
+    LocalNonViscousDamping,
+    MassProportionalDamping,
+    Material,
+    NormalPressure,
+    PrescribedVelocity,
+    Traction,
+)
 from fe_domain.mesh import TaggedMesh
+from numba_support.dispatch import CachedEntry
 
 jit.install()   # DOLFINx's JIT: one short line on a cache miss, no compiler command lines
 
@@ -92,6 +102,10 @@ class ExplicitSolid:
 
     Node arrays use the local (owned then ghost) P1 node numbering of DOLFINx and
     have shape (n_nodes, 3) or (n_nodes,); the first ``n_owned_nodes`` are owned.
+
+    ``compiled`` (default: on one MPI rank): each step is two compiled calls
+    (:mod:`fe_domain.compiled`, the operators in CSR) instead of PETSc products and NumPy
+    operations; the same arithmetic, to round-off. Several ranks use PETSc.
     """
 
     def __init__(self, tagged_mesh: TaggedMesh, material: Material | Mapping[str, Material], *,
@@ -99,7 +113,7 @@ class ExplicitSolid:
                  loads: Sequence[Traction | NormalPressure | BodyForce] = (),
                  damping=None, formulation: str = "mixed",
                  alpha_tau: float = DEFAULT_ALPHA_TAU, safety_factor: float = 0.5,
-                 dt: float | None = None):
+                 dt: float | None = None, compiled: bool | None = None):
         if formulation not in ("mixed", "displacement"):
             raise ValueError(f"formulation = {formulation!r}: must be 'mixed' or 'displacement'")
         if not 0 < safety_factor <= 1:
@@ -175,15 +189,19 @@ class ExplicitSolid:
         #: Record energies every ``energy_interval`` steps (0: never) into ``energy_history``.
         self.energy_interval = 0
         self.energy_history: list[dict] = []
-        self._external_work = 0.0
-        self._damping_work = 0.0
-        self._stabilisation_dissipation = 0.0
+        #: compiled.WORK_*: external work, damping work, stabilisation dissipation (this rank's sums)
+        self._work = np.zeros(3)
         #: f_ext − f_int − f_damp of the last step (N per node).
         self.net_force = np.zeros((self.n_nodes, 3))
         self._damping_force = np.zeros((self.n_nodes, 3))
         self._velocity_change = np.zeros((self.n_nodes, 3))
         self._velocity_old = np.zeros((self.n_nodes, 3))
         self._increment = np.zeros((self.n_nodes, 3))
+        if compiled is None:
+            compiled = self.comm.size == 1
+        if compiled and self.comm.size > 1:
+            raise ValueError("compiled = True: the compiled step runs on one MPI rank only")
+        self._kernel = self._compiled_step() if compiled else None
 
     @property
     def dt(self) -> float:
@@ -328,9 +346,77 @@ class ExplicitSolid:
             total += entries * value_size + (entries // bs ** 2 + parts * (rows + 1)) * index_size
         return total
 
+    def _compiled_step(self):
+        """The operators in CSR and the nodal arrays (this solid's memory) for
+        :mod:`fe_domain.compiled`."""
+        n = self.n_nodes
+        ops = dict.fromkeys(compiled.StepOperators._fields, compiled.empty_blocks())
+        ops["stiffness"] = compiled.blocks(compiled.scipy_matrix(self._stiffness), 3, 3)
+        if self.mixed:
+            divergence = compiled.scipy_matrix(self._divergence)
+            projection = compiled.scipy_matrix(self._projection)
+            ops["divergence"] = compiled.blocks(divergence, 3, 1)
+            ops["divergence_t"] = compiled.blocks(divergence.T.tocsr(), 1, 3)
+            ops["projection"] = compiled.blocks(projection, 3, 1)
+            ops["projection_t"] = compiled.blocks(projection.T.tocsr(), 1, 3)
+            ops["laplacian"] = compiled.blocks(compiled.scipy_matrix(self._laplacian), 1, 1)
+            scalars = (self._volumetric.array, self._stabilisation.array,
+                       self._inverse_pressure_mass, self._inverse_projection_mass)
+        else:
+            scalars = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n))
+        volumetric, stabilisation, inverse_pressure_mass, inverse_projection_mass = scalars
+        groups = [np.full(len(dofs), g, np.int64) for g, (dofs, _, _) in enumerate(self._prescribed)]
+        flat = lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)  # noqa: E731
+        nodal = compiled.NodalArrays(
+            displacement=self.u.x.array, velocity=self.v.x.array, pressure=self.p.x.array,
+            projected_gradient=self.pi.x.array, external_force=self.external_force.reshape(-1),
+            loads=np.array([vector.reshape(-1) for vector, _ in self._loads]).reshape(len(self._loads), 3 * n),
+            f_ext=np.zeros(3 * n), f_int=self._f_int.array, net_force=self.net_force.reshape(-1),
+            damping_force=self._damping_force.reshape(-1), velocity_old=self._velocity_old.reshape(-1),
+            velocity_change=self._velocity_change.reshape(-1), increment=self._increment.reshape(-1),
+            mass=self.mass, inverse_mass=self._inverse_mass.reshape(-1), inverse_pressure_mass=inverse_pressure_mass,
+            inverse_projection_mass=inverse_projection_mass,
+            projected=self._projected.array if self.mixed else np.zeros(3 * n),
+            volumetric=volumetric, stabilisation=stabilisation, fixed_dofs=self._fixed_dofs,
+            prescribed_dofs=flat([dofs for dofs, _, _ in self._prescribed], np.int64),
+            prescribed_values=flat([values for _, values, _ in self._prescribed], np.float64),
+            prescribed_group=flat(groups, np.int64), work=self._work)
+        self._load_amplitude_values = np.zeros(len(self._loads))
+        self._prescribed_amplitude_values = np.zeros(len(self._prescribed))
+        self._velocity_update = CachedEntry(compiled.velocity_update)
+        self._displacement_update = CachedEntry(compiled.displacement_update)
+        return compiled.StepOperators(**ops), nodal
+
+    def compiled_arguments(self):
+        """(settings, operators, nodal arrays) of the compiled step (:mod:`fe_domain.compiled`),
+        or None when the solid steps with PETSc (several ranks)."""
+        if self._kernel is None:
+            return None
+        ops, nodal = self._kernel
+        kind = {MassProportionalDamping: compiled.DAMPING_MASS_PROPORTIONAL,
+                LocalNonViscousDamping: compiled.DAMPING_LOCAL}.get(type(self.damping), compiled.DAMPING_NONE)
+        if self.damping is not None and kind == compiled.DAMPING_NONE:
+            raise TypeError(f"damping {self.damping!r}: the compiled step knows mass-proportional and local damping")
+        alpha = float(self.damping.alpha) if self.damping is not None else 0.0
+        return compiled.StepSettings(self.dt, self.mixed, kind, alpha), ops, nodal
+
     # ------------------------------------------------------------------ stepping
     def step(self) -> None:
         """Advance one time step, docs/design.md §4.4, steps 1–4 (step 4 at the start of the next step)."""
+        if self._kernel is not None:
+            settings, ops, nodal = self.compiled_arguments()
+            loads, prescribed = self._load_amplitude_values, self._prescribed_amplitude_values  # kept: CachedEntry
+            for m, (_, amplitude) in enumerate(self._loads):
+                loads[m] = amplitude(self.time)
+            for m, (_, _, amplitude) in enumerate(self._prescribed):
+                prescribed[m] = amplitude(self.time + 0.5 * self.dt)
+            self._velocity_update(settings, ops, nodal, loads, prescribed)
+            if self.energy_due():
+                self._record_energies(self._velocity_old)
+            self._displacement_update(settings, ops, nodal)
+            self.time += self.dt
+            self.step_count += 1
+            return
         dt = self.dt
         # Step 1 (and step 4 for p^n): f_int = K_dev u^n + Bᵀ p^n, π^n = −G̃⁻¹ P p^n.
         self._stiffness.mult(self.u.vector, self._f_int_petsc)
@@ -367,9 +453,9 @@ class ExplicitSolid:
         # Step 2.
         increment = np.multiply(dt, velocity, out=self._increment)
         owned = slice(0, self.n_owned_nodes)
-        self._external_work += _dot(f_ext[owned], increment[owned])
+        self._work[compiled.WORK_EXTERNAL] += _dot(f_ext[owned], increment[owned])
         if self.damping is not None:
-            self._damping_work += _dot(f_damp[owned], increment[owned])
+            self._work[compiled.WORK_DAMPING] += _dot(f_damp[owned], increment[owned])
         self.displacement += increment
         # Step 3: Δp = M_p⁻¹ [Δt (Bᵀ)ᵀ v^{n+½} − (L p^n + Pᵀ π^n)] on owned nodes, then p's ghosts.
         if self.mixed:
@@ -383,18 +469,60 @@ class ExplicitSolid:
             pressure_change -= stabilisation
             pressure_change *= self._inverse_pressure_mass[owned]
             pressure = self.pressure[owned]
-            self._stabilisation_dissipation += _dot(pressure + 0.5 * pressure_change, stabilisation)
+            self._work[compiled.WORK_STABILISATION] += _dot(pressure + 0.5 * pressure_change, stabilisation)
             pressure += pressure_change
             self.p.x.scatter_forward()
         self.time += dt
         self.step_count += 1
 
     def run(self, n_steps: int, callback=None) -> None:
-        """``n_steps`` steps; ``callback(solver)`` after each (outputs, coupling)."""
-        for _ in range(n_steps):
+        """``n_steps`` steps; ``callback(solver)`` after each (outputs, coupling). Without a
+        callback, a compiled solid runs the steps between energy records in one call."""
+        done = 0
+        while done < n_steps:
+            if callback is None and self._kernel is not None and not self.energy_due():
+                count = n_steps - done
+                if self.energy_interval > 0:
+                    count = min(count, self.energy_interval - self.step_count % self.energy_interval)
+                self.advance_compiled(count)
+                done += count
+                continue
             self.step()
+            done += 1
             if callback is not None:
                 callback(self)
+
+    def step_times(self, count):
+        """tⁿ of the next ``count`` steps, added up as :meth:`step` adds them."""
+        times, t = [], self.time
+        for _ in range(count):
+            times.append(t)
+            t += self.dt
+        return times
+
+    def compiled_amplitudes(self, count, loads=None, prescribed=None):
+        """(load amplitudes at tⁿ, prescribed-velocity amplitudes at t^{n+½}) of the next
+        ``count`` steps, one row a step (into the first rows of ``loads`` and ``prescribed``,
+        if given)."""
+        times = self.step_times(count)
+        if loads is None:
+            loads, prescribed = np.empty((count, len(self._loads))), np.empty((count, len(self._prescribed)))
+        for m, (_, amplitude) in enumerate(self._loads):
+            loads[:count, m] = [amplitude(t) for t in times]
+        for m, (_, _, amplitude) in enumerate(self._prescribed):
+            prescribed[:count, m] = [amplitude(t + 0.5 * self.dt) for t in times]
+        return loads, prescribed
+
+    def advance_compiled(self, count):
+        """``count`` steps in one compiled call (no energy record due among them)."""
+        compiled.steps(*self.compiled_arguments(), *self.compiled_amplitudes(count))
+        self.finish_compiled_steps(count)
+
+    def finish_compiled_steps(self, count):
+        """The clock after ``count`` steps made by compiled code."""
+        for _ in range(count):
+            self.time += self.dt
+        self.step_count += count
 
     # ------------------------------------------------------------------ checkpoints
     _NODE_FIELDS = ("displacement", "velocity", "pressure", "velocity_change")
@@ -409,8 +537,7 @@ class ExplicitSolid:
         return {"displacement": self.displacement.copy(), "velocity": self.velocity.copy(),
                 "pressure": self.pressure.copy(), "velocity_change": self._velocity_change.copy(),
                 "clock": np.array([self.time, self.step_count, self.dt]),
-                "energy_accumulators": np.array([self._external_work, self._damping_work,
-                                                 self._stabilisation_dissipation]),
+                "energy_accumulators": self._work.copy(),
                 "input_node_index": self.input_node_index.copy(), "n_owned_nodes": np.int64(self.n_owned_nodes)}
 
     def fits(self, state) -> bool:
@@ -428,7 +555,7 @@ class ExplicitSolid:
         self.pressure[:] = state["pressure"]
         self._velocity_change[:] = state["velocity_change"]
         self._restore_clock(state)
-        self._external_work, self._damping_work, self._stabilisation_dissipation = state["energy_accumulators"]
+        self._work[:] = state["energy_accumulators"]
 
     def restore_from_ranks(self, states) -> None:
         """The state written by every rank of another partition (any rank count) of the same
@@ -448,7 +575,7 @@ class ExplicitSolid:
             target[:] = np.concatenate(owned)[rows]
         self._restore_clock(states[0])
         totals = np.sum([st["energy_accumulators"] for st in states], axis=0) if self.comm.rank == 0 else np.zeros(3)
-        self._external_work, self._damping_work, self._stabilisation_dissipation = totals
+        self._work[:] = totals
 
     def _restore_clock(self, state):
         self.time, step_count, self.dt = state["clock"]
@@ -472,8 +599,7 @@ class ExplicitSolid:
         strain = fem.assemble_scalar(self._strain_energy)
         if self.mixed:
             strain += 0.5 * float(np.sum(self.pressure_mass[owned] * self.pressure[owned] ** 2))
-        local = np.array([kinetic, strain, self._external_work, self._damping_work,
-                          self._stabilisation_dissipation])
+        local = np.array([kinetic, strain, *self._work])
         kinetic, strain, external, damping, stabilisation = self.comm.allreduce(local, op=MPI.SUM)
         self.energy_history.append({"time": self.time, "step": self.step_count, "kinetic": kinetic,
                                     "strain": strain, "external_work": external,

@@ -25,6 +25,7 @@ import numpy as np
 from cosim.apps import dem as dem_app
 from cosim.apps import fe as fe_app
 from cosim.apps import on_root
+from cosim.compiled_coupling import CoupledStepper
 from cosim.interface import Interface
 from cosim.outputs import (
     CsvSeries,
@@ -40,7 +41,7 @@ from cosim.outputs import (
 )
 from de_domain.comm import sum_in_rank_order
 
-PROGRESS_CHUNK = 20  # FE steps between checks of the progress line
+PROGRESS_CHUNK = 50  # FE steps between checks of the progress line (on one rank: in one compiled call)
 
 COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interface_force_z",
            "interface_displacement_z", "momentum_fe_x", "momentum_fe_y", "momentum_fe_z",
@@ -75,7 +76,7 @@ def prepare(case, case_path, out_dir, resume):
     if resume:
         state = fe_app.restore_checkpoint(solid, case_path, out_dir, FE_CHECKPOINT_STEM)
         if "interface_held" in state:  # (before the last window's impulse joined it; absent: none)
-            interface.held = state["interface_held"].copy()
+            interface.held[:] = state["interface_held"]
         engine = dem_app.load_checkpoint(case_path, dem_checkpoint, comm=distributed)
         if abs(engine.time - solid.time) > 0.5 * engine.dt:  # files of two runs mixed by hand
             raise CaseError(case_path, "--resume", str(dem_checkpoint),
@@ -153,9 +154,9 @@ def run(prepared):
     if not resume or solid.step_count % every == 0:
         record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
     last_checkpoint = time.perf_counter()
+    stepper = CoupledStepper(solid, engine, interface, n_sub)
     while solid.step_count < total:
-        for _ in range(min(PROGRESS_CHUNK, every - solid.step_count % every, total - solid.step_count)):
-            coupled_step(solid, engine, interface, n_sub)
+        stepper.run(min(PROGRESS_CHUNK, every - solid.step_count % every, total - solid.step_count), coupled_step)
         if solid.step_count % every == 0 or solid.step_count == total:
             record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
             fields.write()
@@ -183,7 +184,8 @@ def run(prepared):
 
 
 def coupled_step(solid, engine, interface, subcycles):
-    """One FE step and its DEM window, docs/design.md §5.3, steps 1–4."""
+    """One FE step and its DEM window, docs/design.md §5.3, steps 1–4, from Python (several
+    ranks; :class:`cosim.compiled_coupling.CoupledStepper` runs many in one compiled call on one)."""
     solid.step()
     interface.send_motion()
     dem_app.advance(engine, subcycles)

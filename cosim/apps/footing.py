@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -204,11 +204,14 @@ class Model:
     interface: object = None
     subcycles: int = 1
     soil_density: float = None  # kg/m³ of the FE soil (coupled)
-    interface_impulse: np.ndarray = field(default_factory=lambda: np.zeros(3))  # since take_interface_impulse
+    stepper: object = None      # coupled: the FE steps (cosim.compiled_coupling.CoupledStepper)
 
     def __post_init__(self):
         # coupled: one DEM window per FE step, the sorted copies stay between windows
         self.engine.keep_sorted = self.solid is not None
+        if self.solid is not None:
+            from cosim.compiled_coupling import CoupledStepper
+            self.stepper = CoupledStepper(self.solid, self.engine, self.interface, self.subcycles)
 
     @property
     def time(self):
@@ -221,13 +224,14 @@ class Model:
         if self.solid is None:
             dem_app.advance(self.engine, max(1, int(round(seconds / self.engine.dt))))
             return
-        for _ in range(max(1, int(round(seconds / self.solid.dt)))):
-            coupled_app.coupled_step(self.solid, self.engine, self.interface, self.subcycles)
-            self.interface_impulse += self.interface.facets.vertex_impulse.sum(axis=0)
+        self.stepper.run(max(1, int(round(seconds / self.solid.dt))), coupled_app.coupled_step)
 
     def take_interface_impulse(self):
         """The impulse (N s) the grains gave the interface since the last call (0 for all-DEM)."""
-        impulse, self.interface_impulse = self.interface_impulse, np.zeros(3)
+        if self.stepper is None:
+            return np.zeros(3)
+        impulse = self.stepper.window_impulse.copy()
+        self.stepper.window_impulse[:] = 0.0
         return impulse
 
     def interface_force(self):
@@ -565,7 +569,7 @@ def resumed_model(case, case_path, out_dir, built, state):
         raise CaseError(case_path, "--resume", str(out_dir / "checkpoint.npz"),
                         "the DEM and FE checkpoints are of different instants; run without --resume")
     if "interface_held" in fe_state:
-        interface.held = fe_state["interface_held"].copy()
+        interface.held[:] = fe_state["interface_held"]
     interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_model)
     interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
     return Model("coupled", engine, engine.facets[0], state["surface"], solid, interface,

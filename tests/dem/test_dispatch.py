@@ -1,11 +1,11 @@
-"""de_domain.dispatch.CachedEntry: the dispatcher's answer, with the typing skipped only
+"""numba_support.dispatch.CachedEntry: the dispatcher's answer, with the typing skipped only
 while the array arguments are the same objects."""
 from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from de_domain.dispatch import CachedEntry
+from numba_support.dispatch import CachedEntry
 
 Pair = namedtuple("Pair", ["a", "scale"])
 

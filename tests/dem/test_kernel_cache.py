@@ -1,4 +1,4 @@
-"""Numba's on-disk cache never runs stale code (de_domain.kernel_cache): a cached kernel
+"""Numba's on-disk cache never runs stale code (numba_support.kernel_cache): a cached kernel
 that calls a kernel of another module is recompiled when that other module changes.
 
 The probe counts the facet candidates of one sphere above a triangle. Its kernel

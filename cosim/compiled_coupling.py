@@ -1,0 +1,240 @@
+"""The coupling schedule (docs/design.md §5.3) for many FE steps in one compiled call, on one
+MPI rank.
+
+Per FE step the schedule is: the FE step, the interface vertices set from the FE state, a
+DEM window of ``subcycles`` steps, the window's impulse handed to the FE. Done from Python
+(:func:`cosim.apps.coupled.coupled_step`) that is ≈ 30 calls a step, and the DEM window's
+entry into its compiled kernel unboxes ≈ 60 arrays: with one substep the Python work and
+the entries cost ≈ 100 µs a step, a third of a 3,000-grain DEM step (README, "Coupling
+overhead"). :func:`coupled_steps` runs the same schedule for up to ``n_fe`` FE steps inside
+one compiled function: the FE step of :mod:`fe_domain.compiled`, the interface loops below,
+and :func:`de_domain.fused.advance` for each window — with the same arithmetic in the same
+order, so a run is bit-identical to the step-by-step one (``tests/coupling/
+test_compiled_coupling.py``).
+
+The compiled loop returns to Python when the DEM lists must be rebuilt, before or inside a
+window (the build is Python); :class:`CoupledStepper` then finishes that window, and the
+next FE step, the way the step-by-step schedule does, so that a rebuild happens at the same
+instant with the same vertex positions.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+import de_domain
+import fe_domain
+from de_domain.fused import advance
+from de_domain.neighbors import max_displacement
+from de_domain.state import CLOCK_STEPS
+from fe_domain.compiled import displacement_update, velocity_update
+from numba_support import kernel_cache
+from numba_support.dispatch import CachedEntry
+
+# before the kernels below are defined: their cache follows de_domain's and fe_domain's sources too
+kernel_cache.install(Path(__file__).parent, depends_on=[Path(de_domain.__file__).parent,
+                                                        Path(fe_domain.__file__).parent])
+
+#: Slots of the status array :func:`coupled_steps` fills.
+DONE_FE_STEPS = 0     # FE steps whose window and interface forces are complete
+OPEN_WINDOW = 1       # 1: one more FE step is done, its window stopped for a list rebuild ...
+OPEN_WINDOW_STEPS = 2  # ... after this many DEM steps
+REBUILD_DUE = 3       # 1: the lists must be rebuilt before the next window
+
+
+class FeSteps(NamedTuple):
+    """The FE solid's compiled step (:meth:`fe_domain.explicit.ExplicitSolid.compiled_arguments`)
+    and the amplitudes of its loads and prescribed velocities for each FE step of the call."""
+
+    settings: tuple
+    operators: tuple
+    nodal: tuple
+    load_amplitudes: np.ndarray        # (n_fe, n_loads) at tⁿ
+    prescribed_amplitudes: np.ndarray  # (n_fe, n_conditions) at t^{n+½}
+
+
+class InterfaceArrays(NamedTuple):
+    """The interface (:class:`cosim.interface.Interface`) on one rank."""
+
+    node: np.ndarray          # (m,) FE node of each interface vertex
+    coordinates: np.ndarray   # (n_nodes, 3) reference positions X of the FE nodes
+    first_row: int            # row of vertex 0 in the DEM's concatenated facet arrays
+    held: np.ndarray          # (m, 3) impulse held back by the smoothing
+    held_before: np.ndarray   # (m, 3) ... before the last window's joined it
+    released: np.ndarray      # (m, 3) impulse handed to the next FE step
+    smoothing: bool
+    release_fraction: float   # β (1 without smoothing)
+    jump_work: np.ndarray     # (1,) the DEM's boundary jump work, booked window by window
+    window_impulse: np.ndarray  # (3,) Σ over the windows of the impulse the grains gave the interface
+
+
+@njit(cache=True, error_model="numpy")
+def _send_motion(fe, interface, meshes):
+    """§5.3 step 2: the vertices start at X + u^n = X + (u^{n+1} − Δt v^{n+½}) and move with v^{n+½};
+    the jump from where the DEM left them is booked as boundary work; the impulse starts at zero."""
+    dt = fe.settings.dt
+    u = fe.nodal.displacement
+    v = fe.nodal.velocity
+    vertices, velocity, impulse, force = meshes.vertices, meshes.vertex_velocity, meshes.vertex_impulse, \
+        meshes.vertex_force
+    work = 0.0
+    for k in range(interface.node.size):
+        a = interface.node[k]
+        r = interface.first_row + k
+        for d in range(3):
+            x = interface.coordinates[a, d] + (u[3 * a + d] - dt * v[3 * a + d])
+            work -= force[r, d] * (x - vertices[r, d])
+            vertices[r, d] = x
+            velocity[r, d] = v[3 * a + d]
+            impulse[r, d] = 0.0
+    interface.jump_work[0] += work
+
+
+@njit(cache=True, error_model="numpy")
+def _receive_forces(fe, interface, meshes):
+    """§5.3 step 4: the interface force of the next FE step = released impulse / Δt_FE
+    (with smoothing, released = β (held + window's impulse), the rest held); the window's
+    impulse added to ``window_impulse`` (summed over the vertices first, in their order)."""
+    window = fe.settings.dt
+    external = fe.nodal.external_force
+    impulse = meshes.vertex_impulse
+    total_impulse = np.zeros(3)
+    for k in range(interface.node.size):
+        a = interface.node[k]
+        r = interface.first_row + k
+        for d in range(3):
+            total_impulse[d] += impulse[r, d]
+            if interface.smoothing:
+                interface.held_before[k, d] = interface.held[k, d]
+                total = interface.held[k, d] + impulse[r, d]
+                interface.released[k, d] = interface.release_fraction * total
+                interface.held[k, d] = total - interface.released[k, d]
+            else:
+                interface.released[k, d] = impulse[r, d]
+            external[3 * a + d] = interface.released[k, d] / window
+    for d in range(3):
+        interface.window_impulse[d] += total_impulse[d]
+
+
+@njit(cache=True, error_model="numpy")
+def _rebuild_due(settings, particles, walls, meshes):
+    """The engine's test before a run (``NeighborList.needs_rebuild`` on the sorted copies)."""
+    dp = max_displacement(particles.pos, particles.ref_pos, particles.pos.shape[0])
+    dv = 0.0
+    if meshes.vertices.shape[0]:
+        dv = max_displacement(meshes.vertices, meshes.ref_vertices, meshes.vertices.shape[0])
+    if walls.point.shape[0]:
+        dv = max(dv, max_displacement(walls.point, walls.ref_point, walls.point.shape[0]))
+    return dp + max(dp, dv) > settings.skin
+
+
+@njit(cache=True, error_model="numpy")
+def coupled_steps(n_fe, subcycles, fe, interface, dem, books, clock, status):
+    """Up to ``n_fe`` FE steps of the schedule; ``dem``: the seven named tuples of
+    :func:`de_domain.fused.advance`. Fills ``status`` (slots ``DONE_FE_STEPS`` …) and
+    returns the DEM steps done."""
+    settings, particles, params, pairs, walls, meshes, candidates = dem
+    status[:] = 0
+    dem_steps = 0
+    for s in range(n_fe):
+        velocity_update(fe.settings, fe.operators, fe.nodal, fe.load_amplitudes[s], fe.prescribed_amplitudes[s])
+        displacement_update(fe.settings, fe.operators, fe.nodal)
+        _send_motion(fe, interface, meshes)
+        if _rebuild_due(settings, particles, walls, meshes):
+            status[OPEN_WINDOW] = 1
+            return dem_steps
+        clock[CLOCK_STEPS] = 0.0
+        due = advance(subcycles, settings, particles, params, pairs, walls, meshes, candidates, books, clock)
+        done = int(clock[CLOCK_STEPS])
+        dem_steps += done
+        if done < subcycles:
+            status[OPEN_WINDOW] = 1
+            status[OPEN_WINDOW_STEPS] = done
+            return dem_steps
+        _receive_forces(fe, interface, meshes)
+        status[DONE_FE_STEPS] = s + 1
+        if due:
+            status[REBUILD_DUE] = 1
+            return dem_steps
+    return dem_steps
+
+
+class CoupledStepper:
+    """FE steps of the coupling schedule: in compiled calls (:func:`coupled_steps`) when the
+    FE solid steps compiled and the DEM engine is serial (one rank), else step by step
+    (``step_by_step``). Bit-identical either way."""
+
+    def __init__(self, solid, engine, interface, subcycles):
+        self.solid, self.engine, self.interface, self.subcycles = solid, engine, interface, int(subcycles)
+        rows = [engine.facet_rows(k) for k, mesh in enumerate(engine.facets) if mesh is interface.facets]
+        self.compiled = solid.compiled_arguments() is not None and engine.domain is None and len(rows) == 1
+        self._python_step_next = True  # the first window (lists built, gathered) goes step by step
+        self._status = np.zeros(4, np.int64)
+        # the compiled call's arguments are the same array objects call after call (amplitude
+        # rows for up to ``_capacity`` FE steps): CachedEntry then skips Numba's typing of its
+        # ≈ 150 arrays, ≈ 0.5 ms a call
+        self._kernel = CachedEntry(coupled_steps)
+        self._capacity = 0
+        self._amplitudes = None
+        self._jump = np.zeros(1)
+        #: Σ of the windows' interface impulses (N s) since the caller last zeroed it
+        self.window_impulse = np.zeros(3)
+        self.fe_steps_compiled = 0        # FE steps done in compiled calls ...
+        self.windows_finished = 0         # ... of which windows stopped for a rebuild, finished from Python
+        if self.compiled:
+            self._first_row = rows[0].start
+            self._vertex_node = np.empty(len(interface.facets.vertices), np.int64)  # one rank: every node owned
+            self._vertex_node[interface.owned_vertices] = interface.owned_nodes
+
+    def run(self, count, step_by_step):
+        """``count`` FE steps; ``step_by_step(solid, engine, interface, subcycles)`` is one FE step
+        and its window from Python (:func:`cosim.apps.coupled.coupled_step`)."""
+        done = 0
+        while done < count:
+            started = None
+            if self.compiled and not self._python_step_next and not self.solid.energy_due() and \
+                    self.engine.steps_before_reorder() >= self.subcycles:
+                started = self.engine.start_external_run()  # None: the lists are due for a rebuild
+            if started is None:
+                step_by_step(self.solid, self.engine, self.interface, self.subcycles)
+                self.window_impulse += self.interface.facets.vertex_impulse.sum(axis=0)
+                self._python_step_next = False
+                done += 1
+            else:
+                done += self._compiled_steps(count - done, started)
+
+    def _compiled_steps(self, count, started):
+        """Up to ``count`` FE steps in one :func:`coupled_steps` call (fewer when the lists
+        must be rebuilt, the spatial order refreshed or the FE energies recorded first);
+        ``started``: :meth:`de_domain.Engine.start_external_run`. Returns the FE steps done."""
+        solid, engine, interface, n_sub = self.solid, self.engine, self.interface, self.subcycles
+        count = min(count, engine.steps_before_reorder() // n_sub)
+        if solid.energy_interval > 0:
+            count = min(count, solid.energy_interval - solid.step_count % solid.energy_interval)
+        if count > self._capacity:
+            self._capacity = max(count, 64)
+            self._amplitudes = solid.compiled_amplitudes(self._capacity)
+        fe = FeSteps(*solid.compiled_arguments(), *solid.compiled_amplitudes(count, *self._amplitudes))
+        dem, books, clock = started
+        jump = self._jump
+        jump[0] = engine.boundary_jump_work
+        arrays = InterfaceArrays(self._vertex_node, solid.node_coordinates, self._first_row, interface.held,
+                                 interface.held_before, interface.released, interface.smoothing_time > 0.0,
+                                 interface.release_fraction(solid.dt), jump, self.window_impulse)
+        status = self._status
+        dem_steps = self._kernel(count, n_sub, fe, arrays, dem, books, clock, status)
+        engine.end_external_run(dem_steps, jump[0])
+        fe_steps = int(status[DONE_FE_STEPS] + status[OPEN_WINDOW])
+        solid.finish_compiled_steps(fe_steps)
+        self.fe_steps_compiled += fe_steps
+        if status[OPEN_WINDOW]:  # the window's rest, and the interface forces, as step by step
+            self.windows_finished += 1
+            from cosim.apps import dem as dem_app
+            dem_app.advance(engine, n_sub - int(status[OPEN_WINDOW_STEPS]))
+            interface.receive_forces(solid.dt)
+            self.window_impulse += interface.facets.vertex_impulse.sum(axis=0)
+        self._python_step_next = bool(status[REBUILD_DUE] or status[OPEN_WINDOW])
+        return fe_steps
