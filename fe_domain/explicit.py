@@ -347,22 +347,16 @@ class ExplicitSolid:
         return total
 
     def _compiled_step(self):
-        """The operators in CSR and the nodal arrays (this solid's memory) for
+        """The operators on their node adjacency and the nodal arrays (this solid's memory) for
         :mod:`fe_domain.compiled`."""
         n = self.n_nodes
-        ops = dict.fromkeys(compiled.StepOperators._fields, compiled.empty_blocks())
-        ops["stiffness"] = compiled.blocks(compiled.scipy_matrix(self._stiffness), 3, 3)
         if self.mixed:
-            divergence = compiled.scipy_matrix(self._divergence)
-            projection = compiled.scipy_matrix(self._projection)
-            ops["divergence"] = compiled.blocks(divergence, 3, 1)
-            ops["divergence_t"] = compiled.blocks(divergence.T.tocsr(), 1, 3)
-            ops["projection"] = compiled.blocks(projection, 3, 1)
-            ops["projection_t"] = compiled.blocks(projection.T.tocsr(), 1, 3)
-            ops["laplacian"] = compiled.blocks(compiled.scipy_matrix(self._laplacian), 1, 1)
+            ops = compiled.step_operators(n, *(compiled.scipy_matrix(m) for m in (
+                self._stiffness, self._divergence, self._projection, self._laplacian)))
             scalars = (self._volumetric.array, self._stabilisation.array,
                        self._inverse_pressure_mass, self._inverse_projection_mass)
         else:
+            ops = compiled.step_operators(n, compiled.scipy_matrix(self._stiffness))
             scalars = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n))
         volumetric, stabilisation, inverse_pressure_mass, inverse_projection_mass = scalars
         groups = [np.full(len(dofs), g, np.int64) for g, (dofs, _, _) in enumerate(self._prescribed)]
@@ -385,7 +379,7 @@ class ExplicitSolid:
         self._prescribed_amplitude_values = np.zeros(len(self._prescribed))
         self._velocity_update = CachedEntry(compiled.velocity_update)
         self._displacement_update = CachedEntry(compiled.displacement_update)
-        return compiled.StepOperators(**ops), nodal
+        return ops, nodal
 
     def compiled_arguments(self):
         """(settings, operators, nodal arrays) of the compiled step (:mod:`fe_domain.compiled`),
