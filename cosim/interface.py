@@ -51,6 +51,8 @@ class Interface:
         all_triangles = self.comm.allgather(triangles)
         counts = [len(a) for a in all_owned]
         self._rows = slice(sum(counts[:self.comm.rank]), sum(counts[:self.comm.rank + 1]))  # this rank's rows
+        self._gathered = np.empty((sum(counts), 6))             # (X + u, v) of every rank's rows, rank order
+        self._gather_counts = [6 * c for c in counts]
         gathered = np.concatenate(all_owned)
         order = np.argsort(gathered)
         self.input_nodes = gathered[order]
@@ -78,7 +80,10 @@ class Interface:
         nodes = self.owned_nodes
         u_now = s.displacement[nodes] - s.dt * s.velocity[nodes] if s.step_count else s.displacement[nodes]
         local = np.hstack([s.node_coordinates[nodes] + u_now, s.velocity[nodes]])
-        gathered = np.concatenate(self.comm.allgather(local)) if self.comm.size > 1 else local  # one rank: no call
+        gathered = local  # one rank: no call
+        if self.comm.size > 1:
+            self.comm.Allgatherv(local, [self._gathered, self._gather_counts])
+            gathered = self._gathered
         state = gathered[self._from_gathered]
         return state[:, :3], state[:, 3:]
 

@@ -224,7 +224,10 @@ def run(engine, nsteps):
     holding the state at the end if ``engine.keep_sorted``)."""
     domain = engine.domain
     comm = domain.comm
-    engine._book_boundary_jumps(engine._wall_arrays()[0], engine._gather_facets()[0])
+    wall_point = engine._wall_arrays()[0]
+    if np.any(wall_point != engine._wall_points_known):  # the jump's work takes the last step's forces
+        engine.update_wall_forces()
+    engine._book_boundary_jumps(wall_point, engine._gather_facets()[0])
     due = rebuild_due(engine)
     for _ in range(int(nsteps)):
         if comm.allreduce(bool(due), op=MPI.LOR):
@@ -237,7 +240,10 @@ def run(engine, nsteps):
             facet_vertex_forces(engine)
     if not engine.keep_sorted:
         engine._write_back()
-    wall_totals(engine)
+    if engine.wall_forces_each_run:
+        wall_totals(engine)
+    else:
+        engine._wall_forces_stale = bool(engine.walls)
 
 
 def wall_totals(engine):

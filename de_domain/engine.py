@@ -96,6 +96,10 @@ class Engine:
             raise ValueError(f"Engine: viscous_damping = {viscous_damping!r} must be >= 0")
         self._copies_hold_state = False  # the sorted copies, not the public arrays, are current
         self.keep_sorted = False
+        #: distributed: gather the wall forces over the ranks after every run (False: only in
+        #: update_wall_forces, checkpoints, and before a wall moved from outside is booked)
+        self.wall_forces_each_run = True
+        self._wall_forces_stale = False
         self.particles = particles
         self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
         n_mat = len(self.materials)
@@ -262,6 +266,13 @@ class Engine:
             self._update_lists(walls, facet_state[0])
             todo = min(nsteps - done, self.neighbors.perm_step + fused.PERM_EVERY - self.step_count)
             done += self._advance(todo, walls, facet_state)
+
+    def update_wall_forces(self):
+        """Make ``wall.force`` the last step's again (collective when distributed), after runs
+        with ``wall_forces_each_run = False``."""
+        if self._wall_forces_stale:
+            _distributed().wall_totals(self)
+            self._wall_forces_stale = False
 
     def start_external_run(self):
         """For a caller that calls :func:`fused.advance` from its own compiled loop (the
@@ -692,6 +703,7 @@ class Engine:
         if self.domain is None:
             particles, acceleration, books, jump = self.particles, self.acceleration, self._books, self._jump_work
         else:
+            self.update_wall_forces()
             particles = self.global_particles()
             acceleration = particles.acceleration
             books = _distributed().reduce_books(self, self._books)

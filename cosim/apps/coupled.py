@@ -85,6 +85,7 @@ def prepare(case, case_path, out_dir, resume):
         interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_engine)
         n_sub = int(round(solid.dt / engine.dt))
         engine.keep_sorted = True  # one DEM window per FE step: the sorted copies stay between windows
+        engine.wall_forces_each_run = False  # nothing reads them between windows (checkpoints update them)
         return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
     built = comm.bcast(on_root(comm, lambda: dem_app.read_inputs(case, case_path)), root=0)
     engine = dem_app.build_engine(case_path, case, built, extra_facets=[interface.facets], comm=distributed)
@@ -94,6 +95,7 @@ def prepare(case, case_path, out_dir, resume):
     engine.dt = dem_dt
     dem_app.check_steps(case_path, case.time, fe_dt)
     engine.keep_sorted = True
+    engine.wall_forces_each_run = False
     return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
 
 

@@ -209,6 +209,7 @@ class Model:
     def __post_init__(self):
         # coupled: one DEM window per FE step, the sorted copies stay between windows
         self.engine.keep_sorted = self.solid is not None
+        self.engine.wall_forces_each_run = self.solid is None  # coupled: nothing reads them between windows
         if self.solid is not None:
             from cosim.compiled_coupling import CoupledStepper
             self.stepper = CoupledStepper(self.solid, self.engine, self.interface, self.subcycles)
