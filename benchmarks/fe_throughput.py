@@ -6,7 +6,9 @@
 The driver meshes the unit block (meshes/block.geo) once per size into
 benchmarks/out/*.msh, then runs itself as a worker under
 ``mpirun -n N python benchmarks/fe_throughput.py --worker MSH`` for each rank count.
-A worker times ``ExplicitSolid.step()`` (bottom fixed, top traction) and the floor:
+A worker times ``ExplicitSolid.step()`` (bottom fixed, top traction; on one rank the
+compiled step, fe_domain/compiled.py, and the same mixed solid stepped with PETSc beside
+it, ``compiled=False``) and the floor:
 one bare DOLFINx assembly of the internal force ∫ Bᵀ(s(u) + p I) (step 1 alone)
 into a preallocated array plus its reverse ghost scatter, on the same mesh.  The
 step applies sparse operators assembled once (K_dev, Bᵀ, P, L: six matrix–vector
@@ -14,7 +16,8 @@ products for a mixed step, one for the displacement-only P1 step, which is liste
 too), so it costs less than the floor's element pass.  Floor, mixed step and
 displacement step are timed back to back in one process, REPEATS times; the table
 gives the median of each time and of each step/floor ratio, and the operators'
-storage per cell (``ExplicitSolid.operator_bytes``, summed over ranks).
+storage per cell (``ExplicitSolid.operator_bytes``, summed over ranks, plus the compiled
+copy on one rank, ``compiled_operator_bytes``).
 """
 
 from __future__ import annotations
@@ -70,6 +73,11 @@ def worker(msh_path: str) -> None:
                                boundary_conditions=[Fixed("bottom")], loads=[Traction("top", (0.0, 0.0, -1e4))])
         solvers[formulation] = solver
         result[f"{formulation}_bytes_per_cell"] = comm.allreduce(solver.operator_bytes()) / n_cells
+        result[f"{formulation}_compiled_bytes_per_cell"] = comm.allreduce(solver.compiled_operator_bytes()) / n_cells
+    if comm.size == 1:
+        solvers["mixed_petsc"] = ExplicitSolid(tagged, Material(E=1e7, nu=0.3, rho=1000.0), compiled=False,
+                                               boundary_conditions=[Fixed("bottom")],
+                                               loads=[Traction("top", (0.0, 0.0, -1e4))])
     solver = solvers["mixed"]
     internal_force = fem.form(ufl.inner(forms.deviatoric_stress(solver.u, solver.G)
                                         + solver.p * ufl.Identity(3), ufl.grad(ufl.TestFunction(solver.V))) * ufl.dx)
@@ -80,7 +88,7 @@ def worker(msh_path: str) -> None:
         fem.assemble_vector(vector.array, internal_force)
         vector.scatter_reverse(dolfinx.la.ScatterMode.add)
 
-    samples = {"floor": [], "mixed": [], "displacement": []}
+    samples = {"floor": [], **{name: [] for name in solvers}}
     for _ in range(REPEATS):
         samples["floor"].append(_time_per_call(floor))
         for formulation, solver in solvers.items():
@@ -123,17 +131,21 @@ def main() -> None:
             rows.append(json.loads(next(line for line in output.splitlines() if line.startswith("RESULT "))[7:]))
             print(f"  done: h = {size:g} m, {ranks} rank(s)", file=sys.stderr, flush=True)
     header = (f"{'cells':>8} {'ranks':>5} | {'mixed step':>10} {'cell-steps/s':>13} {'/floor':>6} | "
-              f"{'displ. step':>11} {'cell-steps/s':>13} {'/floor':>6} | {'floor':>8} | {'B/cell':>13}")
+              f"{'displ. step':>11} {'cell-steps/s':>13} {'/floor':>6} | {'floor':>8} | {'PETSc step':>10} | "
+              f"{'B/cell':>20}")
     print(f"Explicit FE step time (ms) and throughput, medians of {REPEATS} back-to-back repeats; "
-          "floor = one bare DOLFINx assembly of f_int; B/cell = operator storage, mixed / displ.")
+          "floor = one bare DOLFINx assembly of f_int; PETSc step = the mixed step with PETSc's products "
+          "(one rank, where the step is compiled); B/cell = operator storage, mixed / displ. (+ compiled copy)")
     print(header)
     print("-" * len(header))
     for r in rows:
         print(f"{r['cells']:>8} {r['ranks']:>5} | {1e3 * r['mixed']:>10.2f} {r['cells'] / r['mixed']:>13.3e} "
               f"{r['mixed_ratio']:>6.2f} | {1e3 * r['displacement']:>11.2f} "
               f"{r['cells'] / r['displacement']:>13.3e} {r['displacement_ratio']:>6.2f} | "
-              f"{1e3 * r['floor']:>8.2f} | {r['mixed_bytes_per_cell']:>6.0f} / "
-              f"{r['displacement_bytes_per_cell']:>4.0f}")
+              f"{1e3 * r['floor']:>8.2f} | "
+              + (f"{1e3 * r['mixed_petsc']:>10.2f}" if "mixed_petsc" in r else f"{'':>10}")
+              + f" | {r['mixed_bytes_per_cell']:>6.0f} / {r['displacement_bytes_per_cell']:>4.0f}"
+              + (f" (+{r['mixed_compiled_bytes_per_cell']:.0f})" if r['mixed_compiled_bytes_per_cell'] else ""))
 
 
 if __name__ == "__main__":

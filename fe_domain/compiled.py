@@ -92,7 +92,9 @@ def scipy_matrix(matrix):
     from scipy.sparse import csr_matrix
 
     if "baij" in matrix.getType():
-        matrix = matrix.convert("aij")
+        from petsc4py import PETSc
+
+        matrix = matrix.convert("aij", PETSc.Mat())  # into a new matrix (without one, petsc4py converts in place)
     indptr, indices, data = matrix.getValuesCSR()
     return csr_matrix((data.copy(), indices, indptr), shape=matrix.getSize())
 

@@ -346,6 +346,12 @@ class ExplicitSolid:
             total += entries * value_size + (entries // bs ** 2 + parts * (rows + 1)) * index_size
         return total
 
+    def compiled_operator_bytes(self) -> int:
+        """Storage (bytes) of the compiled step's copy of the operators (one rank; 0 without):
+        the same values as PETSc's, one column index per node pair instead of one per scalar
+        entry (:class:`fe_domain.compiled.StepOperators`). Held besides PETSc's matrices."""
+        return sum(array.nbytes for array in self._kernel[0]) if self._kernel is not None else 0
+
     def _compiled_step(self):
         """The operators on their node adjacency and the nodal arrays (this solid's memory) for
         :mod:`fe_domain.compiled`."""

@@ -74,3 +74,9 @@ def test_run_in_compiled_calls_is_step_by_step_bit_for_bit():
     for name in ("displacement", "velocity", "pressure", "_work"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert a.energy_history == b.energy_history and len(a.energy_history) == 5
+
+
+def test_the_compiled_copy_leaves_petscs_matrices_as_they_were():
+    """(petsc4py's Mat.convert works in place unless given a matrix to fill.)"""
+    solid = make(True, "mixed", None)
+    assert solid._stiffness.getType() == "seqbaij"
