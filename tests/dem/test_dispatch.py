@@ -17,6 +17,7 @@ def _weighted_sum(pair, out):
 
 
 def test_cached_entry_agrees_with_the_dispatcher_and_follows_new_arrays_and_types():
+    """(A fresh kernel: its first calls have one overload, the shortcut; later ones several.)"""
     kernel = CachedEntry(_weighted_sum)
     out = np.zeros(1)
     a = np.arange(4.0)
