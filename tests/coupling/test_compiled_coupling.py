@@ -1,8 +1,10 @@
 """The coupling schedule in compiled calls (cosim/compiled_coupling.py) is the step-by-step
 one, bit for bit: FE state, particles, contact histories, interface forces, the impulse in
 transit and held back, the energy books; with list rebuilds inside windows (windows finished
-from Python), with 1 and several substeps, with the interface smoothing on."""
+from Python), with 1 and several substeps, with the interface smoothing on, and with the
+compiled run on two Numba threads."""
 
+import numba
 import numpy as np
 import pytest
 
@@ -35,20 +37,30 @@ def state(built):
             "work": solid._work}
 
 
-@pytest.mark.parametrize("subcycles, smoothing", [(1, 0.0), (4, 0.0), (3, 2e-4)])
-def test_compiled_schedule_is_the_step_by_step_one_bit_for_bit(tmp_path, subcycles, smoothing):
+def run_steps(tmp_path, subcycles, smoothing, compiled):
+    """FE_STEPS coupled steps, 20 a call: (state, stepper, list builds)."""
+    built = prepared(tmp_path, subcycles, smoothing)
+    stepper = CoupledStepper(built["solid"], built["engine"], built["interface"], built["subcycles"])
+    assert stepper.compiled
+    stepper.compiled = compiled
+    builds = built["engine"].neighbors.n_builds
+    for _ in range(FE_STEPS // 20):
+        stepper.run(20, coupled.coupled_step)
+    assert built["solid"].step_count == FE_STEPS
+    return ({**state(built), "window_impulse": stepper.window_impulse}, stepper,
+            built["engine"].neighbors.n_builds - builds)
+
+
+@pytest.mark.parametrize("subcycles, smoothing, threads", [(1, 0.0, 1), (4, 0.0, 1), (3, 2e-4, 1), (3, 0.0, 2)])
+def test_compiled_schedule_is_the_step_by_step_one_bit_for_bit(tmp_path, subcycles, smoothing, threads):
+    """(``threads``: Numba threads of the compiled run; the step-by-step one has one.)"""
     runs = []
-    for compiled in (True, False):
-        built = prepared(tmp_path / str(compiled), subcycles, smoothing)
-        stepper = CoupledStepper(built["solid"], built["engine"], built["interface"], built["subcycles"])
-        assert stepper.compiled
-        stepper.compiled = compiled
-        builds = built["engine"].neighbors.n_builds
-        for _ in range(FE_STEPS // 20):
-            stepper.run(20, coupled.coupled_step)
-        assert built["solid"].step_count == FE_STEPS
-        runs.append(({**state(built), "window_impulse": stepper.window_impulse}, stepper,
-                     built["engine"].neighbors.n_builds - builds))
+    try:
+        for compiled in (True, False):
+            numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS) if compiled else 1)
+            runs.append(run_steps(tmp_path / str(compiled), subcycles, smoothing, compiled))
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     (fast, stepper, builds), (reference, _, reference_builds) = runs
     assert stepper.fe_steps_compiled > FE_STEPS // 2       # most steps ran compiled ...
     assert builds > 5                                      # ... with list rebuilds,
