@@ -264,7 +264,7 @@ class Engine:
             facet_state = self._gather_facets()
             self._book_boundary_jumps(walls[0], facet_state[0])
             self._update_lists(walls, facet_state[0])
-            todo = min(nsteps - done, self.neighbors.perm_step + fused.PERM_EVERY - self.step_count)
+            todo = min(nsteps - done, self.steps_before_reorder())
             done += self._advance(todo, walls, facet_state)
 
     def update_wall_forces(self):
@@ -277,8 +277,8 @@ class Engine:
     def start_external_run(self):
         """For a caller that calls :func:`fused.advance` from its own compiled loop (the
         FE–DE coupling, :mod:`cosim.compiled_coupling`): what :meth:`run` does before its
-        kernel call — boundary jumps booked, lists rebuilt if due, the state in the sorted
-        copies — and the kernel's arguments after ``nsteps``: the seven named tuples of
+        kernel call — boundary jumps booked, the state in the sorted copies, the facet
+        impulses loaded — and the kernel's arguments after ``nsteps``: the seven named tuples of
         :mod:`de_domain.state`, the energy books and the clock. The facet vertices, their
         velocities and impulses are the arrays of the returned ``FacetMeshes``, all meshes
         concatenated (mesh k's rows from ``facet_rows(k)``); the caller may set them between
@@ -295,11 +295,8 @@ class Engine:
             return None
         self._book_boundary_jumps(walls[0], vertices)
         copies = self._sorted_copies()
-        impulse = self._facet_impulse
-        for k, mesh in enumerate(self.facets):
-            impulse[self._vertex_offsets[k]:self._vertex_offsets[k + 1]] = mesh.vertex_impulse
-        return self._kernel_state(walls, (vertices, vertex_velocity, impulse), copies), self._books, \
-            self._clock_at_start()
+        facet_state = (vertices, vertex_velocity, self._load_facet_impulses())
+        return self._kernel_state(walls, facet_state, copies), self._books, self._clock_at_start()
 
     def steps_before_reorder(self):
         """DEM steps left before the spatial order is refreshed (a run stops there)."""
@@ -319,13 +316,7 @@ class Engine:
         and facets' state handed back to their objects (as after :meth:`run`), the facet
         velocities too; ``jump_work``: :attr:`boundary_jump_work` with the caller's
         bookings added, window by window (the order :meth:`run` adds them in)."""
-        if not self.keep_sorted:
-            self._write_back()
-        walls = self._walls_state
-        self.time = float(self._clock[CLOCK_TIME])
-        self.step_count += int(steps)
-        self._finish_walls(walls[0])
-        self._finish_facets(self._facet_vertices, self._facet_impulse)
+        self._finish_run(steps, self._walls_state, self._facet_vertices, self._facet_impulse)
         for k, mesh in enumerate(self.facets):
             mesh.vertex_velocity[:] = self._facet_vertex_velocity[self.facet_rows(k)]
         self._jump_work = float(jump_work)
@@ -345,7 +336,7 @@ class Engine:
         p = self._particles
         nl = self.neighbors
         wp, wn, _, _ = walls
-        refresh = nl.perm is not None and self.step_count >= nl.perm_step + fused.PERM_EVERY
+        refresh = nl.perm is not None and self.steps_before_reorder() <= 0
         if refresh or self._rebuild_due(vertices, wp, wn):
             self._write_back()  # the build reads, reorders and rewrites the public arrays
             if refresh or nl.perm is None:
@@ -441,19 +432,29 @@ class Engine:
         if p.n_owned == p.n and (nsteps >= SORTED_MIN_STEPS or self.keep_sorted or self._copies_hold_state):
             copies = self._sorted_copies()
         vertices, vertex_vel = facet_state
-        impulse = self._facet_impulse
-        for k, mesh in enumerate(self.facets):
-            impulse[self._vertex_offsets[k]:self._vertex_offsets[k + 1]] = mesh.vertex_impulse
+        impulse = self._load_facet_impulses()
         self._advance_kernel(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies),
                              self._books, clock)
+        done = int(clock[CLOCK_STEPS])
+        self._finish_run(done, walls, vertices, impulse)
+        return done
+
+    def _load_facet_impulses(self):
+        """The meshes' vertex impulses, copied into the concatenated array the kernel adds to."""
+        impulse = self._facet_impulse
+        for k, mesh in enumerate(self.facets):
+            impulse[self.facet_rows(k)] = mesh.vertex_impulse
+        return impulse
+
+    def _finish_run(self, steps, walls, vertices, impulse):
+        """After ``steps`` kernel steps from the clock of :meth:`_clock_at_start`: the sorted
+        copies written back (unless ``keep_sorted``), the clock, the walls and the facets."""
         if not self.keep_sorted:
             self._write_back()
-        done = int(clock[CLOCK_STEPS])
-        self.time = float(clock[CLOCK_TIME])
-        self.step_count += done
+        self.time = float(self._clock[CLOCK_TIME])
+        self.step_count += int(steps)
         self._finish_walls(walls[0])
         self._finish_facets(vertices, impulse)
-        return done
 
     def _write_back(self):
         """Scatter the spatially sorted copies back to the public arrays, if they hold the

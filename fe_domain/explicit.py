@@ -381,8 +381,9 @@ class ExplicitSolid:
             prescribed_dofs=flat([dofs for dofs, _, _ in self._prescribed], np.int64),
             prescribed_values=flat([values for _, values, _ in self._prescribed], np.float64),
             prescribed_group=flat(groups, np.int64), work=self._work)
-        self._load_amplitude_values = np.zeros(len(self._loads))
-        self._prescribed_amplitude_values = np.zeros(len(self._prescribed))
+        # one step's amplitudes, and row views of them kept for CachedEntry (the same objects each step)
+        self._step_amplitudes = (np.zeros((1, len(self._loads))), np.zeros((1, len(self._prescribed))))
+        self._step_amplitude_rows = tuple(a[0] for a in self._step_amplitudes)
         self._velocity_update = CachedEntry(compiled.velocity_update)
         self._displacement_update = CachedEntry(compiled.displacement_update)
         return ops, nodal
@@ -405,12 +406,8 @@ class ExplicitSolid:
         """Advance one time step, docs/design.md §4.4, steps 1–4 (step 4 at the start of the next step)."""
         if self._kernel is not None:
             settings, ops, nodal = self.compiled_arguments()
-            loads, prescribed = self._load_amplitude_values, self._prescribed_amplitude_values  # kept: CachedEntry
-            for m, (_, amplitude) in enumerate(self._loads):
-                loads[m] = amplitude(self.time)
-            for m, (_, _, amplitude) in enumerate(self._prescribed):
-                prescribed[m] = amplitude(self.time + 0.5 * self.dt)
-            self._velocity_update(settings, ops, nodal, loads, prescribed)
+            self.compiled_amplitudes(1, *self._step_amplitudes)
+            self._velocity_update(settings, ops, nodal, *self._step_amplitude_rows)
             if self.energy_due():
                 self._record_energies(self._velocity_old)
             self._displacement_update(settings, ops, nodal)
