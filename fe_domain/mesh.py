@@ -3,22 +3,30 @@
 A geometry is a gmsh ``.geo`` source in ``meshes/`` (or an already meshed ``.msh``
 file).  Rank 0 of the communicator builds or reads the gmsh model, generates the
 3D tetrahedral mesh with the requested size, and ``dolfinx.io.gmshio.model_to_mesh``
-distributes it (docs/design.md §1.2: meshes/*.geo → gmsh → dolfinx mesh + facet tags).
+distributes it (docs/design.md §1.2: meshes/*.geo → gmsh → dolfinx mesh + facet tags),
+cut into parts by :func:`reproducible_partitioner`: DOLFINx's default (PT-SCOTCH) cut the
+same tiny footing mesh two different ways over 12 runs on 2 ranks (2026-12-03), and a
+different cut changes the order of the FE sums, i.e. the bits of a run and of its resume.
 Physical-group names are broadcast with the mesh so that case files can say
 ``facets("interface")`` and never use raw tag numbers.
 """
 
 from __future__ import annotations
 
+import functools
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import gmsh
 import meshio
 import numpy as np
+from dolfinx import cpp
 from dolfinx.io import gmshio
 from dolfinx.mesh import Mesh, MeshTagsMetaClass
 from mpi4py import MPI
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
 
@@ -86,11 +94,58 @@ def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
     try:
         if failure:
             raise MeshError(failure)
-        mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
+        with _cells_partitioned_by(cpp.mesh.create_cell_partitioner(reproducible_partitioner)):
+            mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
         return TaggedMesh(mesh, cell_tags, facet_tags, groups)
     finally:
         if comm.rank == rank:
             gmsh.finalize()
+
+
+def reproducible_partitioner(comm, n_parts, graph, ghosting):
+    """A DOLFINx graph partitioner (``cpp.mesh.create_cell_partitioner(...)`` wraps it) that cuts
+    the cells' dual graph (an edge per shared facet) the same way on every run: the graph,
+    gathered on rank 0, is ordered by reverse Cuthill–McKee (scipy: breadth-first level sets
+    from a peripheral cell, so they sweep across the mesh) and the order is cut into
+    ``n_parts`` runs of equal cell count. Returns, per local cell, its owner followed, if
+    ``ghosting``, by the other parts of its dual-graph neighbours (where it is a ghost) —
+    what DOLFINx's own partitioners return. Collective."""
+    local = comm.gather((graph.array, graph.offsets), root=0)
+    pieces = None
+    if comm.rank == 0:
+        counts = [len(offsets) - 1 for _, offsets in local]
+        n = int(sum(counts))
+        rows = np.repeat(np.arange(n), np.concatenate([np.diff(offsets) for _, offsets in local]))
+        edges = np.concatenate([links for links, _ in local]).astype(np.int64)
+        order = reverse_cuthill_mckee(csr_matrix((np.ones(edges.size, np.int8), (rows, edges)), shape=(n, n)),
+                                      symmetric_mode=True)
+        part = np.empty(n, np.int32)
+        part[order] = (np.arange(n) * n_parts) // max(n, 1)
+        cross = part[edges] != part[rows] if ghosting else np.zeros(edges.size, np.bool_)
+        extra = np.unique(np.stack([rows[cross], part[edges[cross]]], axis=1), axis=0)  # (cell, part), sorted
+        n_extra = np.bincount(extra[:, 0], minlength=n)
+        offsets = np.concatenate([[0], np.cumsum(1 + n_extra)])
+        data = np.empty(offsets[-1], np.int32)
+        data[offsets[:-1]] = part
+        first_extra = np.concatenate([[0], np.cumsum(n_extra)])[:-1]
+        data[offsets[extra[:, 0]] + 1 + np.arange(len(extra)) - first_extra[extra[:, 0]]] = extra[:, 1]
+        starts = np.cumsum([0] + counts)
+        pieces = [(data[offsets[starts[r]]:offsets[starts[r + 1]]], offsets[starts[r]:starts[r + 1] + 1]
+                   - offsets[starts[r]]) for r in range(comm.size)]
+    data, offsets = comm.scatter(pieces, root=0)
+    return cpp.graph.AdjacencyList_int32(np.ascontiguousarray(data, np.int32), np.ascontiguousarray(offsets, np.int32))
+
+
+@contextmanager
+def _cells_partitioned_by(cell_partitioner):
+    """``gmshio.model_to_mesh`` (DOLFINx 0.5.2 takes no partitioner argument) creating its mesh
+    with ``cell_partitioner``: its module's ``create_mesh`` replaced for the call."""
+    original = gmshio.create_mesh
+    gmshio.create_mesh = functools.partial(original, partitioner=cell_partitioner)
+    try:
+        yield
+    finally:
+        gmshio.create_mesh = original
 
 
 def _unusable(groups: dict[str, tuple[int, int]]) -> str | None:
