@@ -62,13 +62,10 @@ def test_the_loaded_footing_bears_on_the_grains_and_the_interface_carries_it(run
     s = read_series(runs / "coupled" / "series.csv")
     assert s["settlement_ratio"][-1] == pytest.approx(0.1, rel=0.02)
     assert s["bearing_pressure"][-1] > 0 and np.all(s["footing_force_z"] >= 0)
-    rest = json.loads((runs / "coupled" / "summary.json").read_text())["rest"]
     # momentum balance of the zone over the loading: the rows are impulses over equal intervals, so
     # sum(interface force) = -sum(grain weight + footing force) + the grains' momentum at the end
     # (they were at rest at the start; the part under the footing moves with it: ~2 % here)
-    assert np.ptp(np.diff(s["time"])) < 1e-9
-    total = -(len(s["time"]) * rest["grain_weight_N"] + np.sum(s["footing_force_z"]))
-    assert np.sum(s["interface_force_z"]) == pytest.approx(total, rel=0.05)
+    assert _momentum_balance_ratio(runs / "coupled") == pytest.approx(1.0, abs=0.05)
     for name in ("load_settlement.png", "displacement_section.png", "fields.xdmf", "particles.pvd", "rest.csv"):
         assert (runs / "coupled" / name).exists(), name
 
@@ -117,28 +114,51 @@ def two_ranks(runs, tmp_path_factory):
     return case, folder / "out"
 
 
+def _momentum_balance_ratio(folder):
+    """Σ interface force / −Σ (grain weight + footing force) over the loading's rows (equal
+    intervals): 1 + the grains' momentum at the end (test above: ~2 %)."""
+    s = read_series(folder / "series.csv")
+    rest = json.loads((folder / "summary.json").read_text())["rest"]
+    assert np.ptp(np.diff(s["time"])) < 1e-9
+    return np.sum(s["interface_force_z"]) / -(len(s["time"]) * rest["grain_weight_N"] + np.sum(s["footing_force_z"]))
+
+
 def test_two_ranks_run_the_same_model(runs, two_ranks, tmp_path):
     """The coupled tiny case under mpirun -n 2, from the 1-rank run's specimen: at rest with the
-    same balance, and the same load-settlement curve as one rank up to the chaos of a granular
-    packing. The all-DEM model is bit-identical on 2 ranks; the coupled one is not, because the
-    FE partition changes the order of the FE sums (round-off), and a packing under load amplifies
-    any last-bit difference within a few hundred steps: a 1-rank run whose E differs in the
-    15th digit deviates as much. So the 2-rank curve must stay as close to the 1-rank one as that
-    perturbed run does (a factor 3 for the randomness of chaotic deviations)."""
+    same balance, the same momentum balance under load, and the same load-settlement curve up
+    to the peak as one rank, up to the chaos of a granular packing. The all-DEM model is
+    bit-identical on 2 ranks; the coupled one is not, because the FE partition changes the order
+    of the FE sums (round-off), and a packing under load amplifies any last-bit difference: 1-rank
+    runs whose E differs in the 15th digit agree within a few % up to the peak, and after it (the
+    zone fails, force chains buckle) their curves scatter by up to ±50 % (e.g. the last q of five
+    such runs: 4.3–13.3 kPa; measured 2026-12-03). So the 2-rank curve is compared where the
+    response is still a smooth function of the load — up to the 1-rank peak — against the spread
+    of three perturbed 1-rank runs there (a factor 3 for the randomness of that spread)."""
     case, two_out = two_ranks
-    res = cosim("run", str(case), "--out", str(tmp_path / "perturbed"), *overrides(generated=False),
-                "--set", f"soil.E={2.0e6 * (1 + 1e-15)!r}")
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     one = json.loads((runs / "coupled" / "summary.json").read_text())
     two = json.loads((two_out / "coupled" / "summary.json").read_text())
     assert two["ranks"] == 2 and one["ranks"] == 1 and two["grains"] == one["grains"]
     assert abs(two["rest"]["interface_force_over_weight"] - 1.0) < 0.01
+    assert _momentum_balance_ratio(two_out / "coupled") == pytest.approx(1.0, abs=0.05)
     q1 = read_series(runs / "coupled" / "series.csv")["bearing_pressure"]
     q2 = read_series(two_out / "coupled" / "series.csv")["bearing_pressure"]
-    qp = read_series(tmp_path / "perturbed" / "coupled" / "series.csv")["bearing_pressure"]
-    ranks, perturbed = np.mean(np.abs(q2 - q1)) / np.mean(q1), np.mean(np.abs(qp - q1)) / np.mean(q1)
-    print(f"mean |q difference| / mean q: 2 ranks {ranks:.3g}, E perturbed in the 15th digit {perturbed:.3g}")
-    assert 0 < perturbed and ranks < 3 * perturbed
+    peak = int(np.argmax(q1))
+    assert 2 <= peak < len(q1) - 1  # a peak inside the loading, with points before it
+
+    def deviation_to_peak(q):
+        return np.max(np.abs(q[:peak + 1] - q1[:peak + 1])) / q1[peak]
+
+    spread = 0.0
+    for k in (1, 2, 3):
+        res = cosim("run", str(case), "--out", str(tmp_path / f"perturbed{k}"), *overrides(generated=False),
+                    "--set", f"soil.E={2.0e6 * (1 + k * 1e-15)!r}")
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+        spread = max(spread, deviation_to_peak(
+            read_series(tmp_path / f"perturbed{k}" / "coupled" / "series.csv")["bearing_pressure"]))
+    ranks = deviation_to_peak(q2)
+    print(f"largest |q difference| up to the peak / peak q: 2 ranks {ranks:.3g}, E perturbed in the 15th "
+          f"digit (3 runs) {spread:.3g}")
+    assert 0 < spread and ranks < 3 * spread
 
 
 def test_the_trench_interface_is_closed_and_the_fe_lies_behind_it():
