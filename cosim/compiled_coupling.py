@@ -19,24 +19,16 @@ instant with the same vertex positions.
 """
 from __future__ import annotations
 
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-import de_domain
-import fe_domain
 from de_domain.fused import advance
 from de_domain.neighbors import max_displacement
 from de_domain.state import CLOCK_STEPS
 from fe_domain.compiled import displacement_update, velocity_update
-from numba_support import kernel_cache
 from numba_support.dispatch import CachedEntry
-
-# before the kernels below are defined: their cache follows de_domain's and fe_domain's sources too
-kernel_cache.install(Path(__file__).parent, depends_on=[Path(de_domain.__file__).parent,
-                                                        Path(fe_domain.__file__).parent])
 
 #: Slots of the status array :func:`coupled_steps` fills.
 DONE_FE_STEPS = 0     # FE steps whose window and interface forces are complete

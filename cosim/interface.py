@@ -25,6 +25,38 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mpi4py import MPI
+from numba import njit
+
+
+@njit(cache=True, error_model="numpy")
+def _pack_motion(rows, nodes, coordinates, displacement, velocity, dt, after_a_step):
+    """Row k = (X + u^n, v^{n+½}) of node ``nodes[k]``; after a step u^n = u^{n+1} − Δt v^{n+½}
+    (before the first, u^0)."""
+    for k in range(nodes.size):
+        a = nodes[k]
+        for d in range(3):
+            u = displacement[a, d] - dt * velocity[a, d] if after_a_step else displacement[a, d]
+            rows[k, d] = coordinates[a, d] + u
+            rows[k, 3 + d] = velocity[a, d]
+
+
+@njit(cache=True, error_model="numpy")
+def _unpack_motion(gathered, vertex_of_row, vertices, vertex_velocity):
+    """Gathered row r → position and velocity of facet vertex ``vertex_of_row[r]``."""
+    for r in range(gathered.shape[0]):
+        k = vertex_of_row[r]
+        for d in range(3):
+            vertices[k, d] = gathered[r, d]
+            vertex_velocity[k, d] = gathered[r, 3 + d]
+
+
+@njit(cache=True, error_model="numpy")
+def _set_forces(external_force, nodes, released, vertex_of_node, window):
+    """f_a = I_a / Δt_FE on each owned interface node a (its facet vertex's released impulse)."""
+    for k in range(nodes.size):
+        for d in range(3):
+            external_force[nodes[k], d] = released[vertex_of_node[k], d] / window
 
 
 class Interface:
@@ -63,9 +95,10 @@ class Interface:
         tri = np.searchsorted(self.input_nodes, np.concatenate(all_triangles).reshape(-1, 3))
         if len(tri) == 0:
             raise ValueError(f"interface '{name}' has no facets")
-        positions, velocities = self._gathered_state()
+        state = self._gather_motion()[self._from_gathered]
+        positions = state[:, :3]
         self.facets = FacetMesh(positions, tri, material=material, source_nodes=self.input_nodes)
-        self.facets.set_vertex_state(positions, velocities)
+        self.facets.set_vertex_state(positions, state[:, 3:])
         self._traction_field = None
         self.smoothing_time = float(smoothing_time)
         self.held = np.zeros_like(positions)         # impulse held back by the smoothing (every vertex)
@@ -74,24 +107,20 @@ class Interface:
         self.owned_vertices = self._vertex_of_row[self._rows]  # facet vertex of each owned node
         self.nodal_area = nodal_areas(positions, tri)[self.owned_vertices]  # of this rank's owned nodes
 
-    def _gathered_state(self):
-        """(positions X + u^n, velocities v^{n+½}) of the interface vertices, on every rank."""
+    def _gather_motion(self):
+        """The rows (X + u^n, v^{n+½}) of every rank's owned interface nodes, in rank order, on
+        every rank (this rank's packed in place, then gathered into the same kept buffer)."""
         s = self.solid
-        nodes = self.owned_nodes
-        u_now = s.displacement[nodes] - s.dt * s.velocity[nodes] if s.step_count else s.displacement[nodes]
-        local = np.hstack([s.node_coordinates[nodes] + u_now, s.velocity[nodes]])
-        gathered = local  # one rank: no call
+        _pack_motion(self._gathered[self._rows], self.owned_nodes, s.node_coordinates, s.displacement, s.velocity,
+                     s.dt, s.step_count > 0)
         if self.comm.size > 1:
-            self.comm.Allgatherv(local, [self._gathered, self._gather_counts])
-            gathered = self._gathered
-        state = gathered[self._from_gathered]
-        return state[:, :3], state[:, 3:]
+            self.comm.Allgatherv(MPI.IN_PLACE, [self._gathered, self._gather_counts])
+        return self._gathered
 
     def send_motion(self):
         """docs/design.md §5.3 step 2: after the FE step n → n+1 the vertices start at X + u^n and move
         with v^{n+½} over the window (the DEM advances them linearly, x += v Δt)."""
-        positions, velocities = self._gathered_state()
-        self.facets.set_vertex_state(positions, velocities)
+        _unpack_motion(self._gather_motion(), self._vertex_of_row, self.facets.vertices, self.facets.vertex_velocity)
         self.facets.reset_impulse()
 
     def receive_forces(self, window):
@@ -106,7 +135,7 @@ class Interface:
             np.subtract(total, self.released, out=self.held)
         else:
             self.released[:] = impulse
-        self.solid.external_force[self.owned_nodes] = self.released[self.owned_vertices] / window
+        _set_forces(self.solid.external_force, self.owned_nodes, self.released, self.owned_vertices, window)
 
     def release_fraction(self, window):
         """β = 1 − exp(−Δt_FE/τ) of the smoothing (module docstring); 1 without."""
