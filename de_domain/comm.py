@@ -11,7 +11,8 @@
   run (README, "DEM under MPI").
 * :func:`exchange_records` — at list rebuilds only (migration, new ghosts,
   contact history): a dict of arrays per destination rank, one all-to-all.
-* :func:`gather_rows` — concatenation of per-rank rows on every rank, in rank order;
+* :func:`gather_rows` — concatenation of per-rank rows on every rank, in rank order
+  (:class:`RowGather`: the same every step, in kept buffers);
   :func:`sum_in_rank_order` — partial sums added in rank order (diagnostics).
 """
 from __future__ import annotations
@@ -109,6 +110,36 @@ def sum_in_rank_order(comm, values):
     for part in comm.allgather(values):
         total += part
     return total
+
+
+class RowGather:
+    """Float64 rows of every rank, concatenated in rank order on every rank, through buffers
+    kept between calls: the row counts (``Allgather``), then the rows (``Allgatherv``) — for
+    rows gathered every step (the facet contacts of :func:`de_domain.distributed.facet_vertex_forces`)."""
+
+    def __init__(self, comm, columns):
+        self.comm, self.columns = comm, int(columns)
+        self._local = np.empty((0, self.columns))
+        self._all = np.empty((0, self.columns))
+        self._count = np.zeros(1, np.int64)
+        self._counts = np.zeros(comm.size, np.int64)
+
+    def local_rows(self, capacity):
+        """The buffer this rank writes its rows into, with room for ``capacity`` rows at least."""
+        if self._local.shape[0] < capacity:
+            self._local = np.empty((max(int(capacity), 2 * self._local.shape[0]), self.columns))
+        return self._local
+
+    def gather(self, count):
+        """The first ``count`` rows of every rank's :meth:`local_rows` buffer, in rank order (collective)."""
+        self._count[0] = count
+        self.comm.Allgather(self._count, self._counts)
+        total = int(self._counts.sum())
+        if self._all.shape[0] < total:
+            self._all = np.empty((max(total, 2 * self._all.shape[0]), self.columns))
+        gathered = self._all[:total]
+        self.comm.Allgatherv(self._local[:count], [gathered, self._counts * self.columns])
+        return gathered
 
 
 def gather_rows(comm, array):

@@ -29,9 +29,10 @@ from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from . import fused
-from .comm import GhostExchange, concatenate_records, exchange_records, gather_rows, sum_in_rank_order
+from .comm import GhostExchange, RowGather, concatenate_records, exchange_records, gather_rows, sum_in_rank_order
 from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
 from .neighbors import MAX_SPREAD, ContactRecords, record_keys
 from .particles import ARRAY_FIELDS, Particles
@@ -51,8 +52,16 @@ class Domain:
         self.decomposition = None
         self.ids = np.empty(0, np.int64)
         self.exchange = None
+        self.facet_contacts = RowGather(comm, 8)  # (global id, triangle, λ, F) of each facet contact
+        self._flag = np.zeros(1, np.int32)
         self.migrated = 0  # particles this rank sent away, all rebuilds
         self.rebuilds = 0
+
+    def any_rank(self, flag):
+        """Is ``flag`` true on any rank (collective, through a kept buffer)?"""
+        self._flag[0] = bool(flag)
+        self.comm.Allreduce(MPI.IN_PLACE, self._flag, op=MPI.MAX)
+        return bool(self._flag[0])
 
 
 def distribute(engine, particles, comm):
@@ -207,34 +216,33 @@ def check_finite(engine):
                                  "velocity or time step far too large?)")
 
 
-def rebuild_due(engine):
+def rebuild_due(engine, walls, vertices):
     """This rank's part of the rebuild test (before a run): no lists yet, the walls
     changed, or owned particles, walls or vertices moved more than the skin allows
-    since the last build."""
+    since the last build (``walls``, ``vertices``: from the engine's ``_wall_arrays``,
+    ``_gather_facets``)."""
     nl = engine.neighbors
     if nl.perm is None or nl.ref_pos is None or nl.ref_pos.shape[0] != engine._particles.n:
         return True
-    vertices = engine._gather_facets()[0]
-    wall_point, wall_normal, _, _ = engine._wall_arrays()
-    return engine._rebuild_due(vertices, wall_point, wall_normal)
+    return engine._rebuild_due(vertices, walls[0], walls[1])
 
 
 def run(engine, nsteps):
     """``nsteps`` distributed steps (module docstring), on the sorted copies (left
     holding the state at the end if ``engine.keep_sorted``)."""
     domain = engine.domain
-    comm = domain.comm
-    wall_point = engine._wall_arrays()[0]
-    if np.any(wall_point != engine._wall_points_known):  # the jump's work takes the last step's forces
+    walls = engine._wall_arrays()      # read once: the steps advance them and write them back
+    facet_state = engine._gather_facets()
+    if np.any(walls[0] != engine._wall_points_known):  # the jump's work takes the last step's forces
         engine.update_wall_forces()
-    engine._book_boundary_jumps(wall_point, engine._gather_facets()[0])
-    due = rebuild_due(engine)
+    engine._book_boundary_jumps(walls[0], facet_state[0])
+    due = rebuild_due(engine, walls, facet_state[0])
     for _ in range(int(nsteps)):
-        if comm.allreduce(bool(due), op=MPI.LOR):
+        if domain.any_rank(due):
             engine._write_back()
             rebuild(engine)
         copies = engine._sorted_copies()
-        due = engine._advance_copies(copies)
+        due = engine._advance_copies(copies, walls, facet_state)
         domain.exchange.exchange(copies)
         if engine.facets:
             facet_vertex_forces(engine)
@@ -265,16 +273,32 @@ def wall_totals(engine):
         plane.force = totals[w].copy()
 
 
+@njit(cache=True, error_model="numpy")
+def _facet_contact_rows(f_start, f_tri, ids, facet_lambda, facet_force, rows):
+    """Rows (global id, triangle, λ (3), F (3)) of the facet candidates with a force, in
+    candidate order, into ``rows``; returns their count."""
+    n = 0
+    for i in range(f_start.size - 1):
+        for c in range(f_start[i], f_start[i + 1]):
+            if facet_force[c, 0] != 0.0 or facet_force[c, 1] != 0.0 or facet_force[c, 2] != 0.0:
+                rows[n, 0] = ids[i]
+                rows[n, 1] = f_tri[c]
+                for d in range(3):
+                    rows[n, 2 + d] = facet_lambda[c, d]
+                    rows[n, 5 + d] = facet_force[c, d]
+                n += 1
+    return n
+
+
 def facet_vertex_forces(engine):
     """This step's facet vertex forces from the active candidates of all ranks, in
     (global id, triangle) order — the serial code's — and the impulses F Δt."""
     nl = engine.neighbors
-    ids = engine.domain.ids
-    active = np.any(engine.facet_force != 0.0, axis=1)
-    particle = ids[np.repeat(np.arange(nl.f_start.size - 1), np.diff(nl.f_start))][active]
-    rows = np.concatenate([particle[:, None].astype(np.float64), nl.f_tri[active][:, None].astype(np.float64),
-                           engine.facet_lambda[active], engine.facet_force[active]], axis=1)
-    rows = gather_rows(engine.domain.comm, rows)
+    gather = engine.domain.facet_contacts
+    local = gather.local_rows(engine.facet_force.shape[0])
+    count = _facet_contact_rows(nl.f_start, nl.f_tri, engine.domain.ids, engine.facet_lambda, engine.facet_force,
+                                local)
+    rows = gather.gather(count)
     order = np.argsort(record_keys(rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)), kind="stable")
     rows = rows[order]
     force = engine._vertex_force

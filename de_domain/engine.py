@@ -463,13 +463,13 @@ class Engine:
             self._copies_hold_state = False
             fused.scatter_in_order(self.neighbors.perm, self._sorted, self._public_arrays())
 
-    def _advance_copies(self, copies):
+    def _advance_copies(self, copies, walls, facet_state):
         """One step on the sorted copies of a distributed run (the facet vertex forces
-        and impulses are summed over the ranks afterwards, by the caller). Returns
-        whether this rank's particles, walls or vertices call for a list rebuild."""
-        walls = self._wall_arrays()
+        and impulses are summed over the ranks afterwards, by the caller), with the
+        arrays of :meth:`_wall_arrays` and :meth:`_gather_facets` (advanced in place).
+        Returns whether this rank's particles, walls or vertices call for a list rebuild."""
         clock = self._clock_at_start()
-        vertices, vertex_vel = self._gather_facets()
+        vertices, vertex_vel = facet_state
         facet_state = (vertices, vertex_vel, self._facet_impulse)  # this rank's impulse: not used
         due = self._advance_kernel(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
         self.time = float(clock[CLOCK_TIME])
@@ -527,11 +527,10 @@ class Engine:
             work -= float(self.walls[w].force @ (wall_point[w] - self._wall_points_known[w]))
         self._wall_points_known[:] = wall_point
         for k, mesh in enumerate(self.facets):
-            known = self._facet_vertices_known[k]
-            now = vertices[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
-            if not np.array_equal(now, known):
-                work += fused.facet_jump_work(mesh.vertex_force, now, known)
-                known[:] = now
+            moved, jump_work = fused.track_facet_jump(mesh.vertex_force, vertices[self.facet_rows(k)],
+                                                      self._facet_vertices_known[k])
+            if moved:
+                work += jump_work
         if self.domain is None or self.domain.comm.rank == 0:  # the walls are global: book once
             self._jump_work += work
 

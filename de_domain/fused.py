@@ -420,6 +420,19 @@ def facet_jump_work(vertex_force, now, known):
     return work
 
 
+@njit(cache=True, error_model="numpy")
+def track_facet_jump(vertex_force, now, known):
+    """(moved, work): whether vertices ``now`` differ from ``known``; if they do, the work of
+    the jump (:func:`facet_jump_work`), and ``known`` := ``now``."""
+    for v in range(now.shape[0]):
+        for d in range(3):
+            if now[v, d] != known[v, d]:
+                work = facet_jump_work(vertex_force, now, known)
+                known[:, :] = now
+                return True, work
+    return False, 0.0
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, books, clock):
     """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the
