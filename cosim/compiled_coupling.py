@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from de_domain.fused import advance
-from de_domain.neighbors import max_displacement
+from de_domain.neighbors import moved_beyond_skin
 from de_domain.state import CLOCK_STEPS
 from fe_domain.compiled import displacement_update, velocity_update
 from numba_support.dispatch import CachedEntry
@@ -114,13 +114,8 @@ def _receive_forces(fe, interface, meshes):
 @njit(cache=True, error_model="numpy")
 def _rebuild_due(settings, particles, walls, meshes):
     """The engine's test before a run (``NeighborList.needs_rebuild`` on the sorted copies)."""
-    dp = max_displacement(particles.pos, particles.ref_pos, particles.pos.shape[0])
-    dv = 0.0
-    if meshes.vertices.shape[0]:
-        dv = max_displacement(meshes.vertices, meshes.ref_vertices, meshes.vertices.shape[0])
-    if walls.point.shape[0]:
-        dv = max(dv, max_displacement(walls.point, walls.ref_point, walls.point.shape[0]))
-    return dp + max(dp, dv) > settings.skin
+    return moved_beyond_skin(particles.pos, particles.ref_pos, particles.pos.shape[0], meshes.vertices,
+                             meshes.ref_vertices, walls.point, walls.ref_point, settings.skin)
 
 
 @njit(cache=True, error_model="numpy")

@@ -233,8 +233,6 @@ def run(engine, nsteps):
     domain = engine.domain
     walls = engine._wall_arrays()      # read once: the steps advance them and write them back
     facet_state = engine._gather_facets()
-    if np.any(walls[0] != engine._wall_points_known):  # the jump's work takes the last step's forces
-        engine.update_wall_forces()
     engine._book_boundary_jumps(walls[0], facet_state[0])
     due = rebuild_due(engine, walls, facet_state[0])
     for _ in range(int(nsteps)):

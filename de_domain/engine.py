@@ -117,7 +117,6 @@ class Engine:
         # where the engine last left each wall and facet vertex: a move made from outside
         # between two runs is the difference (booked as boundary work)
         self._wall_points_known = np.array([w.point for w in self.walls]).reshape(-1, 3)
-        self._facet_vertices_known = [m.vertices.copy() for m in self.facets]
         self.gravity = np.array(gravity, dtype=np.float64).reshape(3)
         self.safety_factor = float(safety_factor)
         self.local_damping = float(local_damping)
@@ -206,7 +205,11 @@ class Engine:
         self._triangle_edges = np.concatenate(edges) if edges else np.zeros((0, 3), np.int64)
         self._triangle_material = np.concatenate(mats) if mats else np.zeros(0, np.int32)
         self._triangle_mesh = np.concatenate(meshes) if meshes else np.zeros(0, np.int32)
-        self._vertex_force = np.zeros((v_off, 3))
+        # the last step's vertex forces (the meshes' ``vertex_force``, after a checkpoint too)
+        self._vertex_force = np.concatenate([m.vertex_force for m in self.facets]) if self.facets \
+            else np.zeros((0, 3))
+        self._facet_vertices_known = np.concatenate([m.vertices for m in self.facets]) if self.facets \
+            else np.zeros((0, 3))
         self._facet_vertices = np.zeros((v_off, 3))  # all meshes' vertices, velocities and impulses
         self._facet_vertex_velocity = np.zeros((v_off, 3))
         self._facet_impulse = np.zeros((v_off, 3))
@@ -478,8 +481,8 @@ class Engine:
             wall.point = walls[0][w]
         self._wall_points_known[:] = walls[0]
         for k, mesh in enumerate(self.facets):
-            mesh.vertices[:] = vertices[self._vertex_offsets[k]:self._vertex_offsets[k + 1]]
-            self._facet_vertices_known[k][:] = mesh.vertices
+            mesh.vertices[:] = vertices[self.facet_rows(k)]
+        self._facet_vertices_known[:] = vertices
         return due
 
     def _finish_walls(self, wall_point):
@@ -513,24 +516,23 @@ class Engine:
         for k, mesh in enumerate(self.facets):
             part = slice(self._vertex_offsets[k], self._vertex_offsets[k + 1])
             mesh.vertices[:] = vertices[part]
-            self._facet_vertices_known[k][:] = mesh.vertices
             mesh.vertex_force = self._vertex_force[part].copy()
             mesh.vertex_impulse[:] = impulse[part]
             mesh.force = mesh.vertex_force.sum(axis=0)
+        self._facet_vertices_known[:] = vertices
 
     def _book_boundary_jumps(self, wall_point, vertices):
         """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force).
         ``wall_point``, ``vertices``: where they are now (:meth:`_wall_arrays`,
-        :meth:`_gather_facets`)."""
-        work = 0.0
-        for w in np.flatnonzero(np.any(wall_point != self._wall_points_known, axis=1)):
-            work -= float(self.walls[w].force @ (wall_point[w] - self._wall_points_known[w]))
-        self._wall_points_known[:] = wall_point
-        for k, mesh in enumerate(self.facets):
-            moved, jump_work = fused.track_facet_jump(mesh.vertex_force, vertices[self.facet_rows(k)],
-                                                      self._facet_vertices_known[k])
-            if moved:
-                work += jump_work
+        :meth:`_gather_facets`). One compiled call (:func:`fused.boundary_jumps`) unless a wall
+        moved: then its last force is made current first (collective when distributed)."""
+        walls_moved, work = fused.boundary_jumps(wall_point, self._wall_points_known, vertices,
+                                                 self._facet_vertices_known, self._vertex_force)
+        if walls_moved:
+            self.update_wall_forces()
+            for w in np.flatnonzero(np.any(wall_point != self._wall_points_known, axis=1)):
+                work -= float(self.walls[w].force @ (wall_point[w] - self._wall_points_known[w]))
+            self._wall_points_known[:] = wall_point
         if self.domain is None or self.domain.comm.rank == 0:  # the walls are global: book once
             self._jump_work += work
 
@@ -720,7 +722,7 @@ class Engine:
         for k, mesh in enumerate(self.facets):
             for name in ("vertices", "triangles", "vertex_velocity", "vertex_force", "vertex_impulse", "force"):
                 data[f"facet{k}_{name}"] = getattr(mesh, name)
-            data[f"facet{k}_vertices_known"] = self._facet_vertices_known[k]
+            data[f"facet{k}_vertices_known"] = self._facet_vertices_known[self.facet_rows(k)]
             data[f"facet{k}_material"] = np.int64(mesh.material)
             if mesh.source_nodes is not None:
                 data[f"facet{k}_source_nodes"] = mesh.source_nodes
@@ -776,7 +778,8 @@ class Engine:
                      gravity=d["gravity"], dt=dt, safety_factor=safety, local_damping=local,
                      viscous_damping=viscous, skin=float(d["nl_skin"]), comm=comm)
         engine._wall_points_known = d["wall_point_known"].reshape(-1, 3).copy()
-        engine._facet_vertices_known = [d[f"facet{k}_vertices_known"].copy() for k in range(len(facets))]
+        for k in range(len(facets)):
+            engine._facet_vertices_known[engine.facet_rows(k)] = d[f"facet{k}_vertices_known"]
         serial_lists = "nl_perm" in d
         if serial_lists and comm is None:
             engine.neighbors.set_state({k[3:]: v for k, v in d.items() if k.startswith("nl_")})

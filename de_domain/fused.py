@@ -421,16 +421,22 @@ def facet_jump_work(vertex_force, now, known):
 
 
 @njit(cache=True, error_model="numpy")
-def track_facet_jump(vertex_force, now, known):
-    """(moved, work): whether vertices ``now`` differ from ``known``; if they do, the work of
-    the jump (:func:`facet_jump_work`), and ``known`` := ``now``."""
-    for v in range(now.shape[0]):
+def boundary_jumps(wall_point, wall_known, vertices, vertices_known, vertex_force):
+    """What moved from outside since the engine last left the boundaries: (walls moved,
+    work of the facet vertices' jump). The work is :func:`facet_jump_work` over all meshes'
+    vertices (0 if none moved), and then ``vertices_known`` := ``vertices``; the walls'
+    work needs their last forces, which the caller books."""
+    walls_moved = False
+    for w in range(wall_point.shape[0]):
         for d in range(3):
-            if now[v, d] != known[v, d]:
-                work = facet_jump_work(vertex_force, now, known)
-                known[:, :] = now
-                return True, work
-    return False, 0.0
+            walls_moved = walls_moved or wall_point[w, d] != wall_known[w, d]
+    for v in range(vertices.shape[0]):
+        for d in range(3):
+            if vertices[v, d] != vertices_known[v, d]:
+                work = facet_jump_work(vertex_force, vertices, vertices_known)
+                vertices_known[:, :] = vertices
+                return walls_moved, work
+    return walls_moved, 0.0
 
 
 @njit(parallel=True, cache=True, error_model="numpy")

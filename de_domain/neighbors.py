@@ -322,6 +322,28 @@ def max_displacement(pos, ref_pos, n_active):
     return math.sqrt(m)
 
 
+@njit(cache=True)
+def moved_beyond_skin(pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point, skin):
+    """The Verlet test of docs/design.md §2.11: d_p + max(d_p, d_b) > s, with d_p the largest
+    displacement of the first ``n_active`` particles and d_b that of the facet vertices and
+    wall points since the last build."""
+    dp = max_displacement(pos, ref_pos, n_active)
+    db = max_displacement(vertices, ref_vertices, vertices.shape[0])
+    db = max(db, max_displacement(wall_point, ref_wall_point, wall_point.shape[0]))
+    return dp + max(dp, db) > skin
+
+
+@njit(cache=True)
+def lists_outdated(pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point, wall_normal,
+                   ref_wall_normal, skin):
+    """A wall turned, or :func:`moved_beyond_skin` (one compiled call)."""
+    for w in range(wall_normal.shape[0]):
+        for d in range(3):
+            if wall_normal[w, d] != ref_wall_normal[w, d]:
+                return True
+    return moved_beyond_skin(pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point, skin)
+
+
 class NeighborList:
     """Verlet lists (sphere pairs, plane-wall and sphere–facet candidates) with contact history.
 
@@ -392,18 +414,17 @@ class NeighborList:
 
     def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None, ref_pos=None):
         """Did particles (``pos`` against ``ref_pos``, default the positions of the last
-        build, in the same order), walls or vertices move more than the skin allows?"""
+        build, in the same order), walls or vertices move more than the skin allows
+        (:func:`lists_outdated`)?"""
         if self.ref_pos is None or self.ref_pos.shape[0] != n_active or self.perm is None:
             return True
         if wall_point is None:
             wall_point = wall_normal = np.zeros((0, 3))
-        if wall_point.shape != self.ref_wall_point.shape or not np.array_equal(wall_normal, self.ref_wall_normal):
+        if wall_point.shape != self.ref_wall_point.shape:
             return True
-        dp = max_displacement(pos, self.ref_pos if ref_pos is None else ref_pos, n_active)
-        dv = max_displacement(vertices, self.ref_vertices, vertices.shape[0]) if vertices.shape[0] else 0.0
-        if wall_point.shape[0]:
-            dv = max(dv, max_displacement(wall_point, self.ref_wall_point, wall_point.shape[0]))
-        return dp + max(dp, dv) > self.skin
+        ref_vertices = self.ref_vertices if vertices.shape[0] else vertices
+        return lists_outdated(pos, self.ref_pos if ref_pos is None else ref_pos, n_active, vertices, ref_vertices,
+                              wall_point, self.ref_wall_point, wall_normal, self.ref_wall_normal, self.skin)
 
     def build(self, pos, radius, n_active, vertices, triangles, wall_point=None, wall_normal=None,
               ghost=None, ids=None, carried=None, new_order=False):
