@@ -1,11 +1,19 @@
-"""The explicit FE step of :mod:`fe_domain.explicit` as compiled loops (Numba), for one MPI rank.
+"""The explicit FE step of :mod:`fe_domain.explicit` as compiled loops (Numba).
 
 The step is the same arithmetic as ``ExplicitSolid``'s PETSc path (docs/design.md §4.4,
 steps 1–4): six sparse matrix–vector products with the operators assembled once, and nodal
 array operations. On one rank every node is owned and there is nothing to scatter, so the
 whole step can run in one compiled call: ≈ 25 Python-level calls a step (PETSc products,
 NumPy operations) become two (or one call for many steps, :func:`steps`), and the FE–DE
-coupling calls it from inside its own compiled loop (:mod:`cosim.compiled_coupling`). The
+coupling calls it from inside its own compiled loop (:mod:`cosim.compiled_coupling`).
+
+On several ranks the operators hold the **owned rows** of the assembled matrices, with
+their columns in the rank's local node numbering (owned, then ghost nodes; the mesh
+partitioner ghosts every cell around an owned node, :func:`fe_domain.mesh.reproducible_partitioner`,
+so every column is local), plus the owned rows of the transposes B and Pᵀ. The kernels
+compute the owned rows; ``ExplicitSolid`` updates the ghosts between them (v and π after
+the velocity update, p after the pressure update: DOLFINx's forward scatter) and u follows
+on every local node from u += Δt v, the owner's arithmetic. The
 operators share one node adjacency (``StepOperators``: each node pair holds its 3 × 3 block
 of K, its 3 × 1 blocks of Bᵀ and P and its entry of L), so a step reads the adjacency twice
 and each value once or twice: :func:`_internal_force` gathers K u + Bᵀ p and P p along the
@@ -47,6 +55,8 @@ class StepOperators(NamedTuple):
     divergence: np.ndarray   # (entries, 3): Bᵀ = ∫ N div N, row 3a+d, column j
     projection: np.ndarray   # (entries, 3): P = ∫ τ N·∇N, row 3a+d, column j
     laplacian: np.ndarray    # (entries,): L = ∫ τ ∇N·∇N
+    divergence_t: np.ndarray  # (entries, 3): B = (Bᵀ)ᵀ, row a, columns 3j+d (several ranks; else empty)
+    projection_t: np.ndarray  # (entries, 3): Pᵀ, row a, columns 3j+d (several ranks; else empty)
 
 
 class NodalArrays(NamedTuple):
@@ -87,8 +97,10 @@ class StepSettings(NamedTuple):
     damping_alpha: float
 
 
-def scipy_matrix(matrix):
-    """An assembled one-rank PETSc matrix (AIJ or BAIJ) as a scipy CSR matrix."""
+def scipy_matrix(matrix, index_map):
+    """The owned rows of an assembled PETSc matrix (AIJ or BAIJ) as a scipy CSR matrix whose
+    columns are local: node columns (block size b = columns per node) numbered by
+    ``index_map``, owned nodes then ghosts (on one rank: the matrix itself)."""
     from scipy.sparse import csr_matrix
 
     if "baij" in matrix.getType():
@@ -96,34 +108,61 @@ def scipy_matrix(matrix):
 
         matrix = matrix.convert("aij", PETSc.Mat())  # into a new matrix (without one, petsc4py converts in place)
     indptr, indices, data = matrix.getValuesCSR()
-    return csr_matrix((data.copy(), indices, indptr), shape=matrix.getSize())
+    block = matrix.getSize()[1] // index_map.size_global
+    node = local_nodes(index_map, indices // block)
+    n_local = index_map.size_local + index_map.num_ghosts
+    return csr_matrix((data.copy(), node * block + indices % block, indptr),
+                      shape=(matrix.getLocalSize()[0], n_local * block))
 
 
-def step_operators(n_nodes, stiffness, divergence=None, projection=None, laplacian=None) -> StepOperators:
-    """The scipy matrices K (3n × 3n), Bᵀ, P (3n × n) and L (n × n) on their common node
-    adjacency (the union of their patterns; for P1 operators of one mesh they are equal)."""
+def local_nodes(index_map, global_nodes):
+    """Local indices (owned, then ghosts in ``index_map.ghosts`` order) of ``global_nodes``;
+    a node that is not on the rank is an error (the mesh is not ghosted around its owned nodes)."""
+    start, stop = index_map.local_range
+    ghosts = np.asarray(index_map.ghosts, np.int64)
+    owned = (global_nodes >= start) & (global_nodes < stop)
+    local = global_nodes - start
+    is_ghost = np.zeros_like(owned)
+    if ghosts.size:
+        order = np.argsort(ghosts)
+        k = order[np.minimum(np.searchsorted(ghosts, global_nodes, sorter=order), ghosts.size - 1)]
+        is_ghost = ~owned & (ghosts[k] == global_nodes)
+        local = np.where(is_ghost, index_map.size_local + k, local)
+    if not np.all(owned | is_ghost):
+        raise RuntimeError(f"{int(np.sum(~(owned | is_ghost)))} operator columns are neither owned nor ghosts on "
+                           "this rank: the mesh must ghost every cell around an owned node")
+    return local
+
+
+def step_operators(n_rows, n_nodes, stiffness, divergence=None, projection=None, laplacian=None,
+                   divergence_t=None, projection_t=None) -> StepOperators:
+    """The scipy matrices K (3r × 3n), Bᵀ, P (3r × n) and L (r × n), and on several ranks B and
+    Pᵀ (r × 3n), of ``n_rows`` rows (r: owned nodes) over ``n_nodes`` local nodes, on their
+    common node adjacency (the union of their patterns; for P1 operators of one mesh they are
+    equal)."""
     from scipy.sparse import csr_matrix
 
-    mixed = divergence is not None
-    blocks = [(stiffness.tobsr(blocksize=(3, 3)), (3, 3))]
-    if mixed:
-        blocks += [(divergence.tobsr(blocksize=(3, 1)), (3,)), (projection.tobsr(blocksize=(3, 1)), (3,)),
-                   (laplacian.tobsr(blocksize=(1, 1)), ())]
-    pattern = sum(csr_matrix((np.ones(b.indices.size), b.indices, b.indptr), shape=(n_nodes, n_nodes))
-                  for b, _ in blocks).tocsr()
+    # (matrix, its block per node pair, the shape an entry stores)
+    operators = [(stiffness, (3, 3), (3, 3)), (divergence, (3, 1), (3,)), (projection, (3, 1), (3,)),
+                 (laplacian, (1, 1), ()), (divergence_t, (1, 3), (3,)), (projection_t, (1, 3), (3,))]
+    converted = [(None if matrix is None else matrix.tobsr(blocksize=block), shape)
+                 for matrix, block, shape in operators]
+    pattern = sum(csr_matrix((np.ones(b.indices.size), b.indices, b.indptr), shape=(n_rows, n_nodes))
+                  for b, _ in converted if b is not None).tocsr()
     pattern.sort_indices()
-    rows = np.repeat(np.arange(n_nodes), np.diff(pattern.indptr))
+    rows = np.repeat(np.arange(n_rows), np.diff(pattern.indptr))
     keys = rows * n_nodes + pattern.indices               # ascending: rows, then columns
     values = []
-    for bsr, shape in blocks:
+    for bsr, shape in converted:
+        if bsr is None:
+            values.append(np.zeros((0, *shape)))
+            continue
         bsr.sort_indices()
-        own = np.repeat(np.arange(n_nodes), np.diff(bsr.indptr)) * n_nodes + bsr.indices
+        own = np.repeat(np.arange(n_rows), np.diff(bsr.indptr)) * n_nodes + bsr.indices
         value = np.zeros((keys.size, *shape))
         value[np.searchsorted(keys, own)] = bsr.data.reshape(-1, *shape)
         values.append(value)
-    empty = [np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)]
-    return StepOperators(pattern.indptr.astype(np.int64), pattern.indices.astype(np.int32),
-                         *(values if mixed else values + empty))
+    return StepOperators(pattern.indptr.astype(np.int64), pattern.indices.astype(np.int32), *values)
 
 
 @njit(cache=True, error_model="numpy")
@@ -157,10 +196,24 @@ def _internal_force(settings, ops, nodal):
 @njit(cache=True, error_model="numpy")
 def _pressure_terms(ops, nodal):
     """B v = (Bᵀ)ᵀ v into ``nodal.volumetric`` and L p + Pᵀ π into ``nodal.stabilisation``:
-    one pass over the rows j; the transposes add row j's blocks into the entries of its
-    neighbours a (in row order), L p is gathered along row j."""
+    one pass over the rows j; on one rank the transposes add row j's blocks into the entries
+    of its neighbours a (in row order), on several (owned rows only, whose neighbours may be
+    ghosts) they are gathered along row j from their own blocks; L p is gathered along row j."""
     v, p, pi = nodal.velocity, nodal.pressure, nodal.projected_gradient
     volumetric, stabilisation = nodal.volumetric, nodal.stabilisation
+    if ops.divergence_t.shape[0]:
+        for a in range(ops.indptr.size - 1):
+            b_v = 0.0
+            stab = 0.0
+            for k in range(ops.indptr[a], ops.indptr[a + 1]):
+                j = ops.indices[k]
+                b_v += ops.divergence_t[k, 0] * v[3 * j] + ops.divergence_t[k, 1] * v[3 * j + 1] + \
+                    ops.divergence_t[k, 2] * v[3 * j + 2]
+                stab += ops.projection_t[k, 0] * pi[3 * j] + ops.projection_t[k, 1] * pi[3 * j + 1] + \
+                    ops.projection_t[k, 2] * pi[3 * j + 2] + ops.laplacian[k] * p[j]
+            volumetric[a] = b_v
+            stabilisation[a] = stab
+        return
     volumetric[:] = 0.0
     stabilisation[:] = 0.0
     for j in range(ops.indptr.size - 1):
@@ -180,20 +233,21 @@ def velocity_update(settings, ops, nodal, load_amplitudes, prescribed_amplitudes
     """docs/design.md §4.4 step 1 (and step 4 for π^n): the arrays of ``nodal`` from u^n, p^n,
     v^{n−½} to v^{n+½}; ``load_amplitudes`` a_l(tⁿ), ``prescribed_amplitudes`` at t^{n+½}."""
     dt = settings.dt
+    rows = ops.indptr.size - 1  # the owned nodes (all on one rank)
     _internal_force(settings, ops, nodal)
     if settings.mixed:
-        for a in range(nodal.pressure.size):
+        for a in range(rows):
             for d in range(3):
                 nodal.projected_gradient[3 * a + d] = nodal.projected[3 * a + d] * -nodal.inverse_projection_mass[a]
     f_ext = nodal.f_ext
-    for i in range(f_ext.size):
+    for i in range(3 * rows):
         value = nodal.external_force[i]
         for m in range(load_amplitudes.size):
             value += load_amplitudes[m] * nodal.loads[m, i]
         f_ext[i] = value
         nodal.net_force[i] = value - nodal.f_int[i]
     velocity = nodal.velocity
-    for i in range(velocity.size):
+    for i in range(3 * rows):
         if settings.damping == DAMPING_MASS_PROPORTIONAL:
             f_damp = settings.damping_alpha * nodal.mass[i] * velocity[i]
         elif settings.damping == DAMPING_LOCAL:
@@ -209,29 +263,32 @@ def velocity_update(settings, ops, nodal, load_amplitudes, prescribed_amplitudes
     for k in range(nodal.prescribed_dofs.size):
         velocity[nodal.prescribed_dofs[k]] = prescribed_amplitudes[nodal.prescribed_group[k]] * \
             nodal.prescribed_values[k]
-    for i in range(velocity.size):
+    for i in range(3 * rows):
         nodal.velocity_change[i] = velocity[i] - nodal.velocity_old[i]
 
 
 @njit(cache=True, error_model="numpy")
 def displacement_update(settings, ops, nodal):
-    """docs/design.md §4.4 steps 2–3: u^{n+1}, p^{n+1}, and the work accumulators."""
+    """docs/design.md §4.4 steps 2–3: u^{n+1} (every local node: v's ghosts are current),
+    p^{n+1} (owned nodes), and the work accumulators (owned nodes)."""
     dt = settings.dt
+    rows = ops.indptr.size - 1
     work = nodal.work
     external = 0.0
     damping = 0.0
     for i in range(nodal.displacement.size):
         increment = dt * nodal.velocity[i]
         nodal.increment[i] = increment
-        external += nodal.f_ext[i] * increment
-        damping += nodal.damping_force[i] * increment
+        if i < 3 * rows:
+            external += nodal.f_ext[i] * increment
+            damping += nodal.damping_force[i] * increment
         nodal.displacement[i] += increment
     work[WORK_EXTERNAL] += external
     work[WORK_DAMPING] += damping
     if settings.mixed:
         _pressure_terms(ops, nodal)
         dissipation = 0.0
-        for a in range(nodal.pressure.size):
+        for a in range(rows):
             change = (dt * nodal.volumetric[a] - nodal.stabilisation[a]) * nodal.inverse_pressure_mass[a]
             dissipation += (nodal.pressure[a] + 0.5 * change) * nodal.stabilisation[a]
             nodal.pressure[a] += change

@@ -52,6 +52,7 @@ so C = (α_τ K/G)_max ≈ 0.6 (``STABILITY_CONSTANT``).  The default
 
 from __future__ import annotations
 
+import functools
 from typing import Mapping, Sequence
 
 import dolfinx
@@ -103,9 +104,10 @@ class ExplicitSolid:
     Node arrays use the local (owned then ghost) P1 node numbering of DOLFINx and
     have shape (n_nodes, 3) or (n_nodes,); the first ``n_owned_nodes`` are owned.
 
-    ``compiled`` (default: on one MPI rank): each step is two compiled calls
-    (:mod:`fe_domain.compiled`, the operators in CSR) instead of PETSc products and NumPy
-    operations; the same arithmetic, to round-off. Several ranks use PETSc.
+    ``compiled`` (default): each step is two compiled calls (:mod:`fe_domain.compiled`, the
+    operators in CSR; on several ranks their owned rows, with the ghost updates of v, π and p
+    between the calls) instead of PETSc products and NumPy operations; the same arithmetic,
+    to round-off. ``compiled=False``: PETSc's products, the reference.
     """
 
     def __init__(self, tagged_mesh: TaggedMesh, material: Material | Mapping[str, Material], *,
@@ -197,11 +199,7 @@ class ExplicitSolid:
         self._velocity_change = np.zeros((self.n_nodes, 3))
         self._velocity_old = np.zeros((self.n_nodes, 3))
         self._increment = np.zeros((self.n_nodes, 3))
-        if compiled is None:
-            compiled = self.comm.size == 1
-        if compiled and self.comm.size > 1:
-            raise ValueError("compiled = True: the compiled step runs on one MPI rank only")
-        self._kernel = self._compiled_step() if compiled else None
+        self._kernel = self._compiled_step() if compiled is None or compiled else None
 
     @property
     def dt(self) -> float:
@@ -356,20 +354,25 @@ class ExplicitSolid:
         """The operators on their node adjacency and the nodal arrays (this solid's memory) for
         :mod:`fe_domain.compiled`."""
         n = self.n_nodes
+        local = functools.partial(compiled.scipy_matrix, index_map=self.Q.dofmap.index_map)
         if self.mixed:
-            ops = compiled.step_operators(n, *(compiled.scipy_matrix(m) for m in (
-                self._stiffness, self._divergence, self._projection, self._laplacian)))
+            operators = [self._stiffness, self._divergence, self._projection, self._laplacian]
+            if self.comm.size > 1:  # owned rows only: the transposes' own rows for B v and Pᵀ π
+                operators += [m.transpose(PETSc.Mat()) for m in (self._divergence, self._projection)]
+            ops = compiled.step_operators(self.n_owned_nodes, n, *map(local, operators))
             scalars = (self._volumetric.array, self._stabilisation.array,
                        self._inverse_pressure_mass, self._inverse_projection_mass)
         else:
-            ops = compiled.step_operators(n, compiled.scipy_matrix(self._stiffness))
+            ops = compiled.step_operators(self.n_owned_nodes, n, local(self._stiffness))
             scalars = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n))
+        # several ranks: the forces given on ghost nodes are added to their owners first (step)
+        external = self.external_force.reshape(-1) if self.comm.size == 1 else self._external_vector.array
         volumetric, stabilisation, inverse_pressure_mass, inverse_projection_mass = scalars
         groups = [np.full(len(dofs), g, np.int64) for g, (dofs, _, _) in enumerate(self._prescribed)]
         flat = lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)  # noqa: E731
         nodal = compiled.NodalArrays(
             displacement=self.u.x.array, velocity=self.v.x.array, pressure=self.p.x.array,
-            projected_gradient=self.pi.x.array, external_force=self.external_force.reshape(-1),
+            projected_gradient=self.pi.x.array, external_force=external,
             loads=np.array([vector.reshape(-1) for vector, _ in self._loads]).reshape(len(self._loads), 3 * n),
             f_ext=np.zeros(3 * n), f_int=self._f_int.array, net_force=self.net_force.reshape(-1),
             damping_force=self._damping_force.reshape(-1), velocity_old=self._velocity_old.reshape(-1),
@@ -389,8 +392,12 @@ class ExplicitSolid:
         return ops, nodal
 
     def compiled_arguments(self):
-        """(settings, operators, nodal arrays) of the compiled step (:mod:`fe_domain.compiled`),
-        or None when the solid steps with PETSc (several ranks)."""
+        """(settings, operators, nodal arrays) of the compiled step (:mod:`fe_domain.compiled`)
+        for callers that make whole steps in one compiled call, or None: the solid steps with
+        PETSc, or on several ranks (their steps update ghosts between the calls, :meth:`step`)."""
+        return self._step_arguments() if self.comm.size == 1 else None
+
+    def _step_arguments(self):
         if self._kernel is None:
             return None
         ops, nodal = self._kernel
@@ -405,12 +412,22 @@ class ExplicitSolid:
     def step(self) -> None:
         """Advance one time step, docs/design.md §4.4, steps 1–4 (step 4 at the start of the next step)."""
         if self._kernel is not None:
-            settings, ops, nodal = self.compiled_arguments()
+            settings, ops, nodal = self._step_arguments()
+            several = self.comm.size > 1
             self.compiled_amplitudes(1, *self._step_amplitudes)
+            if several:
+                self._external_vector.array[:] = self.external_force.ravel()
+                self._external_vector.scatter_reverse(ScatterMode.add)
             self._velocity_update(settings, ops, nodal, *self._step_amplitude_rows)
+            if several:
+                self.v.x.scatter_forward()
+                if self.mixed:
+                    self.pi.x.scatter_forward()
             if self.energy_due():
                 self._record_energies(self._velocity_old)
             self._displacement_update(settings, ops, nodal)
+            if several and self.mixed:
+                self.p.x.scatter_forward()
             self.time += self.dt
             self.step_count += 1
             return
@@ -477,7 +494,7 @@ class ExplicitSolid:
         callback, a compiled solid runs the steps between energy records in one call."""
         done = 0
         while done < n_steps:
-            if callback is None and self._kernel is not None and not self.energy_due():
+            if callback is None and self.compiled_arguments() is not None and not self.energy_due():
                 count = n_steps - done
                 if self.energy_interval > 0:
                     count = min(count, self.energy_interval - self.step_count % self.energy_interval)

@@ -6,7 +6,8 @@ file).  Rank 0 of the communicator builds or reads the gmsh model, generates the
 distributes it (docs/design.md §1.2: meshes/*.geo → gmsh → dolfinx mesh + facet tags),
 cut into parts by :func:`reproducible_partitioner`: DOLFINx's default (PT-SCOTCH) cut the
 same tiny footing mesh two different ways over 12 runs on 2 ranks (2026-12-03), and a
-different cut changes the order of the FE sums, i.e. the bits of a run and of its resume.
+different cut changes the order of the FE sums, i.e. the bits of a run and of its resume;
+it also ghosts the cells around every owned node (by shared vertex, not facet).
 Physical-group names are broadcast with the mesh so that case files can say
 ``facets("interface")`` and never use raw tag numbers.
 """
@@ -23,7 +24,7 @@ import meshio
 import numpy as np
 from dolfinx import cpp
 from dolfinx.io import gmshio
-from dolfinx.mesh import Mesh, MeshTagsMetaClass
+from dolfinx.mesh import GhostMode, Mesh, MeshTagsMetaClass
 from mpi4py import MPI
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
@@ -94,7 +95,7 @@ def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
     try:
         if failure:
             raise MeshError(failure)
-        with _cells_partitioned_by(cpp.mesh.create_cell_partitioner(reproducible_partitioner)):
+        with _cells_partitioned_by(reproducible_partitioner):
             mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
         return TaggedMesh(mesh, cell_tags, facet_tags, groups)
     finally:
@@ -102,27 +103,27 @@ def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
             gmsh.finalize()
 
 
-def reproducible_partitioner(comm, n_parts, graph, ghosting):
-    """A DOLFINx graph partitioner (``cpp.mesh.create_cell_partitioner(...)`` wraps it) that cuts
-    the cells' dual graph (an edge per shared facet) the same way on every run: the graph,
-    gathered on rank 0, is ordered by reverse Cuthill–McKee (scipy: breadth-first level sets
-    from a peripheral cell, so they sweep across the mesh) and the order is cut into
-    ``n_parts`` runs of equal cell count. Returns, per local cell, its owner followed, if
-    ``ghosting``, by the other parts of its dual-graph neighbours (where it is a ghost) —
-    what DOLFINx's own partitioners return. Collective."""
-    local = comm.gather((graph.array, graph.offsets), root=0)
+def reproducible_partitioner(comm, n_parts, tdim, cells, ghost_mode):
+    """A DOLFINx cell partitioner (``create_mesh(..., partitioner=...)``) that cuts the mesh the
+    same way on every run and ghosts by shared vertex. The cells (tetrahedra), gathered on
+    rank 0, are ordered by reverse Cuthill–McKee of their dual graph (an edge per shared
+    facet; scipy: breadth-first level sets from a peripheral cell, so they sweep across the
+    mesh) and the order is cut into ``n_parts`` runs of equal cell count. Returns, per local
+    cell, its owner followed (unless ``ghost_mode`` is none) by the other parts of every cell
+    that shares a vertex with it, where it is a ghost: every cell around an owned node is then
+    on the rank, so the owned rows of an assembled operator read local nodes only (the
+    compiled step on several ranks, :mod:`fe_domain.compiled`). DOLFINx 0.5.2 disables its own
+    vertex ghosting. Collective."""
+    local = np.asarray(cells.array, np.int64).reshape(-1, tdim + 1)
+    gathered = comm.gather(local, root=0)
     pieces = None
     if comm.rank == 0:
-        counts = [len(offsets) - 1 for _, offsets in local]
-        n = int(sum(counts))
-        rows = np.repeat(np.arange(n), np.concatenate([np.diff(offsets) for _, offsets in local]))
-        edges = np.concatenate([links for links, _ in local]).astype(np.int64)
-        order = reverse_cuthill_mckee(csr_matrix((np.ones(edges.size, np.int8), (rows, edges)), shape=(n, n)),
-                                      symmetric_mode=True)
+        counts = [len(c) for c in gathered]
+        every = np.concatenate(gathered)
+        n = len(every)
         part = np.empty(n, np.int32)
-        part[order] = (np.arange(n) * n_parts) // max(n, 1)
-        cross = part[edges] != part[rows] if ghosting else np.zeros(edges.size, np.bool_)
-        extra = np.unique(np.stack([rows[cross], part[edges[cross]]], axis=1), axis=0)  # (cell, part), sorted
+        part[_cuthill_mckee_order(every)] = (np.arange(n) * n_parts) // max(n, 1)
+        extra = _vertex_neighbour_parts(every, part) if ghost_mode != GhostMode.none else np.zeros((0, 2), np.int64)
         n_extra = np.bincount(extra[:, 0], minlength=n)
         offsets = np.concatenate([[0], np.cumsum(1 + n_extra)])
         data = np.empty(offsets[-1], np.int32)
@@ -134,6 +135,34 @@ def reproducible_partitioner(comm, n_parts, graph, ghosting):
                    - offsets[starts[r]]) for r in range(comm.size)]
     data, offsets = comm.scatter(pieces, root=0)
     return cpp.graph.AdjacencyList_int32(np.ascontiguousarray(data, np.int32), np.ascontiguousarray(offsets, np.int32))
+
+
+def _cuthill_mckee_order(cells):
+    """Reverse Cuthill–McKee order of the tetrahedra ``cells`` (n, 4) by their dual graph."""
+    n = len(cells)
+    faces = np.sort(cells[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
+    cell_of = np.repeat(np.arange(n), 4)
+    order = np.lexsort(faces.T[::-1])
+    faces, cell_of = faces[order], cell_of[order]
+    shared = np.all(faces[1:] == faces[:-1], axis=1)
+    a, b = cell_of[:-1][shared], cell_of[1:][shared]
+    graph = csr_matrix((np.ones(2 * a.size, np.int8), (np.concatenate([a, b]), np.concatenate([b, a]))),
+                       shape=(n, n))
+    graph.sort_indices()
+    return reverse_cuthill_mckee(graph, symmetric_mode=True)
+
+
+def _vertex_neighbour_parts(cells, part):
+    """(cell, part) rows, sorted and unique: the parts other than the cell's own that own a
+    cell sharing a vertex with it."""
+    vertex = cells.ravel()
+    cell_of = np.repeat(np.arange(len(cells)), cells.shape[1])
+    vertex_parts = np.unique(np.stack([vertex, part[cell_of]], axis=1), axis=0)  # sorted by vertex
+    start = np.searchsorted(vertex_parts[:, 0], vertex, "left")
+    count = np.searchsorted(vertex_parts[:, 0], vertex, "right") - start
+    rows = np.repeat(start - np.concatenate([[0], np.cumsum(count)[:-1]]), count) + np.arange(count.sum())
+    pairs = np.unique(np.stack([np.repeat(cell_of, count), vertex_parts[rows, 1]], axis=1), axis=0)
+    return pairs[pairs[:, 1] != part[pairs[:, 0]]]
 
 
 @contextmanager
