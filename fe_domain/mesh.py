@@ -114,7 +114,9 @@ def reproducible_partitioner(comm, n_parts, tdim, cells, ghost_mode):
     on the rank, so the owned rows of an assembled operator read local nodes only (the
     compiled step on several ranks, :mod:`fe_domain.compiled`). DOLFINx 0.5.2 disables its own
     vertex ghosting. Collective."""
-    local = np.asarray(cells.array, np.int64).reshape(-1, tdim + 1)
+    offsets = np.asarray(cells.offsets)
+    width = int(offsets[1] - offsets[0]) if offsets.size > 1 else tdim + 1
+    local = np.asarray(cells.array, np.int64).reshape(-1, width)[:, :tdim + 1]  # the vertices come first
     gathered = comm.gather(local, root=0)
     pieces = None
     if comm.rank == 0:
