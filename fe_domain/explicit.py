@@ -152,7 +152,8 @@ class ExplicitSolid:
         self.pressure = self.p.x.array
         self.projected_pressure_gradient = self.pi.x.array.reshape(-1, 3)
         #: External nodal forces (N), e.g. the DEM interface forces; persists until changed.
-        #: Values on ghost nodes are added to their owners each step: give each force once.
+        #: On several ranks only the rows of owned nodes (< ``n_owned_nodes``) are read: each
+        #: force is given once, by the rank that owns its node.
         self.external_force = np.zeros((self.n_nodes, 3))
 
         self.mass = np.repeat(self._lumped(forms.lumped_mass(ufl.TestFunction(self.Q), self.rho)), 3)
@@ -365,8 +366,7 @@ class ExplicitSolid:
         else:
             ops = compiled.step_operators(self.n_owned_nodes, n, local(self._stiffness))
             scalars = (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n))
-        # several ranks: the forces given on ghost nodes are added to their owners first (step)
-        external = self.external_force.reshape(-1) if self.comm.size == 1 else self._external_vector.array
+        external = self.external_force.reshape(-1)  # the kernels read the owned rows only
         volumetric, stabilisation, inverse_pressure_mass, inverse_projection_mass = scalars
         groups = [np.full(len(dofs), g, np.int64) for g, (dofs, _, _) in enumerate(self._prescribed)]
         flat = lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)  # noqa: E731
@@ -415,9 +415,6 @@ class ExplicitSolid:
             settings, ops, nodal = self._step_arguments()
             several = self.comm.size > 1
             self.compiled_amplitudes(1, *self._step_amplitudes)
-            if several:
-                self._external_vector.array[:] = self.external_force.ravel()
-                self._external_vector.scatter_reverse(ScatterMode.add)
             self._velocity_update(settings, ops, nodal, *self._step_amplitude_rows)
             if several:
                 self.v.x.scatter_forward()
@@ -442,8 +439,7 @@ class ExplicitSolid:
                         out=self.projected_pressure_gradient)
         self._f_int.scatter_forward()
         self._external_vector.array[:] = self.external_force.ravel()
-        self._external_vector.scatter_reverse(ScatterMode.add)
-        self._external_vector.scatter_forward()
+        self._external_vector.scatter_forward()  # the owners' forces on the ghosts
         f_ext = self._external_vector.array.reshape(-1, 3)
         for vector, amplitude in self._loads:
             f_ext += amplitude(self.time) * vector
