@@ -114,15 +114,16 @@ def sum_in_rank_order(comm, values):
 
 class RowGather:
     """Float64 rows of every rank, concatenated in rank order on every rank, through buffers
-    kept between calls: the row counts (``Allgather``), then the rows (``Allgatherv``) — for
-    rows gathered every step (the facet contacts of :func:`de_domain.distributed.facet_vertex_forces`)."""
+    kept between calls: the row counts (``Allgather``, with a flag of each rank riding
+    along), then the rows (``Allgatherv``) — for rows gathered every step (the facet contacts
+    of :func:`de_domain.distributed.facet_vertex_forces`, with "a list rebuild is due")."""
 
     def __init__(self, comm, columns):
         self.comm, self.columns = comm, int(columns)
         self._local = np.empty((0, self.columns))
         self._all = np.empty((0, self.columns))
-        self._count = np.zeros(1, np.int64)
-        self._counts = np.zeros(comm.size, np.int64)
+        self._count = np.zeros(2, np.int64)              # (rows, flag) of this rank
+        self._counts = np.zeros((comm.size, 2), np.int64)  # ... of every rank
 
     def local_rows(self, capacity):
         """The buffer this rank writes its rows into, with room for ``capacity`` rows at least."""
@@ -130,16 +131,18 @@ class RowGather:
             self._local = np.empty((max(int(capacity), 2 * self._local.shape[0]), self.columns))
         return self._local
 
-    def gather(self, count):
-        """The first ``count`` rows of every rank's :meth:`local_rows` buffer, in rank order (collective)."""
-        self._count[0] = count
+    def gather(self, count, flag=False):
+        """The first ``count`` rows of every rank's :meth:`local_rows` buffer, in rank order, and
+        whether ``flag`` is true on any rank (collective)."""
+        self._count[0], self._count[1] = count, bool(flag)
         self.comm.Allgather(self._count, self._counts)
-        total = int(self._counts.sum())
+        counts = self._counts[:, 0]
+        total = int(counts.sum())
         if self._all.shape[0] < total:
             self._all = np.empty((max(total, 2 * self._all.shape[0]), self.columns))
         gathered = self._all[:total]
-        self.comm.Allgatherv(self._local[:count], [gathered, self._counts * self.columns])
-        return gathered
+        self.comm.Allgatherv(self._local[:count], [gathered, counts * self.columns])
+        return gathered, bool(self._counts[:, 1].any())
 
 
 def gather_rows(comm, array):

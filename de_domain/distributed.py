@@ -18,12 +18,12 @@ ghosts. That one rule makes every result independent of the rank count:
 One step is: the compiled step of :mod:`de_domain.fused` on this rank's arrays
 (in the spatially sorted copies, which stay alive between list rebuilds), then
 the ghost exchange (:class:`de_domain.comm.GhostExchange`), then an all-reduce of
-"a list rebuild is due". A rebuild moves every owned particle that left its slab
-to its new owner with its wall and facet contact history, sends every pair
-history (from the rank owning the pair's lower id) to the owners of both
-particles, re-cuts the slabs when the counts per rank are uneven
-(:func:`de_domain.decomposition.needs_rebalance`), sends the new ghosts and
-rebuilds the lists. Energy books are summed over ranks in rank order.
+"a list rebuild is due" (with facet meshes, carried by the gather of the facet
+contacts). A rebuild moves every owned particle that left its slab to its new
+owner with its wall and facet contact history, sends every pair history (from the
+rank owning the pair's lower id) to the owners of both particles, re-cuts the slabs
+when the counts per rank are uneven (:func:`de_domain.decomposition.needs_rebalance`),
+sends the new ghosts and rebuilds the lists. Energy books are summed over ranks in rank order.
 """
 from __future__ import annotations
 
@@ -235,15 +235,16 @@ def run(engine, nsteps):
     facet_state = engine._gather_facets()
     engine._book_boundary_jumps(walls[0], facet_state[0])
     due = rebuild_due(engine, walls, facet_state[0])
+    agreed = False  # is ``due`` already the same on every rank?
     for _ in range(int(nsteps)):
-        if domain.any_rank(due):
+        if due if agreed else domain.any_rank(due):
             engine._write_back()
             rebuild(engine)
         copies = engine._sorted_copies()
         due = engine._advance_copies(copies, walls, facet_state)
         domain.exchange.exchange(copies)
-        if engine.facets:
-            facet_vertex_forces(engine)
+        if engine.facets:  # the flag rides with the facet contacts' gather
+            due, agreed = facet_vertex_forces(engine, due), True
     if not engine.keep_sorted:
         engine._write_back()
     if engine.wall_forces_each_run:
@@ -288,15 +289,16 @@ def _facet_contact_rows(f_start, f_tri, ids, facet_lambda, facet_force, rows):
     return n
 
 
-def facet_vertex_forces(engine):
+def facet_vertex_forces(engine, due):
     """This step's facet vertex forces from the active candidates of all ranks, in
-    (global id, triangle) order — the serial code's — and the impulses F Δt."""
+    (global id, triangle) order — the serial code's — and the impulses F Δt. Returns
+    whether ``due`` (a list rebuild) is true on any rank, agreed in the same messages."""
     nl = engine.neighbors
     gather = engine.domain.facet_contacts
     local = gather.local_rows(engine.facet_force.shape[0])
     count = _facet_contact_rows(nl.f_start, nl.f_tri, engine.domain.ids, engine.facet_lambda, engine.facet_force,
                                 local)
-    rows = gather.gather(count)
+    rows, due_anywhere = gather.gather(count, due)
     order = np.argsort(record_keys(rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)), kind="stable")
     rows = rows[order]
     force = engine._vertex_force
@@ -307,6 +309,7 @@ def facet_vertex_forces(engine):
         mesh.vertex_impulse[:] += force[part] * engine.dt
         mesh.vertex_force = force[part].copy()
         mesh.force = mesh.vertex_force.sum(axis=0)
+    return due_anywhere
 
 
 def gather_owned(engine):
