@@ -26,7 +26,7 @@ from numba import njit
 
 from de_domain.fused import advance
 from de_domain.neighbors import moved_beyond_skin
-from de_domain.state import CLOCK_STEPS
+from de_domain.state import CLOCK_PARTICLE_SHIFT, CLOCK_STEPS
 from fe_domain.compiled import displacement_update, velocity_update
 from numba_support.dispatch import CachedEntry
 
@@ -112,10 +112,11 @@ def _receive_forces(fe, interface, meshes):
 
 
 @njit(cache=True, error_model="numpy")
-def _rebuild_due(settings, particles, walls, meshes):
-    """The engine's test before a run (``NeighborList.needs_rebuild`` on the sorted copies)."""
-    return moved_beyond_skin(particles.pos, particles.ref_pos, particles.pos.shape[0], meshes.vertices,
-                             meshes.ref_vertices, walls.point, walls.ref_point, settings.skin)
+def _rebuild_due(settings, particles, walls, meshes, clock):
+    """The engine's test before a run (``NeighborList.needs_rebuild`` on the sorted copies,
+    with the particles' largest displacement from the last step if there was one)."""
+    return moved_beyond_skin(clock[CLOCK_PARTICLE_SHIFT], particles.pos, particles.ref_pos, particles.pos.shape[0],
+                             meshes.vertices, meshes.ref_vertices, walls.point, walls.ref_point, settings.skin)
 
 
 @njit(cache=True, error_model="numpy")
@@ -130,7 +131,7 @@ def coupled_steps(n_fe, subcycles, fe, interface, dem, books, clock, status):
         velocity_update(fe.settings, fe.operators, fe.nodal, fe.load_amplitudes[s], fe.prescribed_amplitudes[s])
         displacement_update(fe.settings, fe.operators, fe.nodal)
         _send_motion(fe, interface, meshes)
-        if _rebuild_due(settings, particles, walls, meshes):
+        if _rebuild_due(settings, particles, walls, meshes, clock):
             status[OPEN_WINDOW] = 1
             return dem_steps
         clock[CLOCK_STEPS] = 0.0

@@ -33,9 +33,11 @@ from .state import (
     BOOK_INITIALISED,
     BOOK_LAST,
     BOOK_STATE,
+    CLOCK_PARTICLE_SHIFT,
     CLOCK_STEPS,
     CLOCK_TIME,
     N_BOOKS,
+    N_CLOCK,
     ContactParameters,
     FacetCandidates,
     FacetMeshes,
@@ -132,7 +134,8 @@ class Engine:
         self.step_count = 0
         self._setup_facet_topology()
         self._walls_state = None
-        self._clock = np.zeros(2)
+        self._clock = np.zeros(N_CLOCK)
+        self._clock[CLOCK_PARTICLE_SHIFT] = -1.0
         self._identity_perm = np.zeros(0, np.int32)  # perm of the sorted copies: 0, 1, ..., n − 1
         self._sorted = None  # buffers of the spatially sorted copies (_sorted_copies)
         self._advance_kernel = CachedEntry(fused.advance)  # fused.advance without per-call typing
@@ -326,14 +329,18 @@ class Engine:
 
     def _wall_arrays(self):
         """(point, normal, velocity, material) of the plane walls, in arrays the engine keeps
-        (the same objects every call: see :mod:`numba_support.dispatch`)."""
-        n = len(self.walls)
-        if self._walls_state is None or len(self._walls_state[3]) != n:
-            self._walls_state = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int32))
-        point, normal, velocity, material = self._walls_state
-        for w, wall in enumerate(self.walls):
-            point[w], normal[w], velocity[w], material[w] = wall.point, wall.normal, wall.velocity, wall.material
-        return self._walls_state
+        (the same objects every call: see :mod:`numba_support.dispatch`) and the walls hold
+        their state in (:meth:`PlaneWall.bind`; bound again if the list of walls changed, or
+        a wall was bound to another engine since)."""
+        state = self._walls_state
+        walls = self.walls
+        if state is None or len(state[3]) != len(walls) or \
+                not all(w.bound_to is state and w.bound_row == k for k, w in enumerate(walls)):
+            n = len(walls)
+            state = self._walls_state = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int32))
+            for k, wall in enumerate(walls):
+                wall.bind(state, k)
+        return state
 
     def _update_lists(self, walls, vertices):
         p = self._particles
@@ -352,12 +359,14 @@ class Engine:
     def _rebuild_due(self, vertices, wall_point, wall_normal):
         """Have owned particles, walls or facet vertices moved more than the skin allows
         since the last list build (read from the sorted copies when they hold the state:
-        the largest displacement does not depend on the order)?"""
+        the largest displacement does not depend on the order; the particles' is then the
+        last step's, ``CLOCK_PARTICLE_SHIFT``, if a step was made on them)?"""
         p = self._particles
         nl = self.neighbors
-        if self._copies_hold_state:
+        if self._copies_hold_state:  # nothing moved the particles since the last step (if any) on them
             copies = self._sorted
-            return nl.needs_rebuild(copies.pos, p.n, vertices, wall_point, wall_normal, ref_pos=copies.ref_pos)
+            return nl.needs_rebuild(copies.pos, p.n, vertices, wall_point, wall_normal, ref_pos=copies.ref_pos,
+                                    particle_shift=self._clock[CLOCK_PARTICLE_SHIFT])
         return nl.needs_rebuild(p.pos, p.n, vertices, wall_point, wall_normal)
 
     def _kernel_state(self, walls, facet_state, sorted_copies):
@@ -420,6 +429,7 @@ class Engine:
                 np.empty((n, 3)), np.empty(n, np.bool_))
         fused.gather_in_order(self.neighbors.perm, self._public_arrays(), copies, constraints)
         self._copies_hold_state = True
+        self._clock[CLOCK_PARTICLE_SHIFT] = -1.0  # measured again before the first step on them
         return copies
 
     def _advance(self, nsteps, walls, facet_state):
@@ -477,8 +487,6 @@ class Engine:
         due = self._advance_kernel(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
         self.time = float(clock[CLOCK_TIME])
         self.step_count += 1
-        for w, wall in enumerate(self.walls):
-            wall.point = walls[0][w]
         self._wall_points_known[:] = walls[0]
         for k, mesh in enumerate(self.facets):
             mesh.vertices[:] = vertices[self.facet_rows(k)]
@@ -492,7 +500,6 @@ class Engine:
         totals = self._wall_totals(len(self.walls), nl.w_idx, nl.w_particle, nl.w_order, nl.w_force, fused.PBLOCK)
         for w, wall in enumerate(self.walls):
             wall.force = totals[w]  # rows of a new array
-            wall.point = wall_point[w]  # (the setter copies)
         self._wall_points_known[:] = wall_point
 
     def _clock_at_start(self):

@@ -72,6 +72,7 @@ from .state import (
     BOOK_INITIALISED,
     BOOK_LAST,
     BOOK_STATE,
+    CLOCK_PARTICLE_SHIFT,
     CLOCK_STEPS,
     CLOCK_TIME,
     E_DAMPING,
@@ -442,7 +443,8 @@ def boundary_jumps(wall_point, wall_known, vertices, vertices_known, vertex_forc
 @njit(parallel=True, cache=True, error_model="numpy")
 def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, books, clock):
     """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the
-    next step. ``clock``: ``state.CLOCK_TIME``, ``CLOCK_STEPS`` (steps done). Per step,
+    next step. ``clock``: ``state.CLOCK_TIME``, ``CLOCK_STEPS`` (steps done),
+    ``CLOCK_PARTICLE_SHIFT`` (the particle part of the rebuild test, for the next). Per step,
     after the two parallel regions (serial, fixed order): the energy books, the
     boundaries moved (:func:`_move_boundaries`) and the rebuild test (particles, walls
     and vertices against their positions at the last build). Returns whether a
@@ -481,6 +483,7 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
         clock[CLOCK_TIME] += settings.dt
         clock[CLOCK_STEPS] += 1.0
         dp = math.sqrt(d2)
+        clock[CLOCK_PARTICLE_SHIFT] = dp
         if dp + max(dp, math.sqrt(dw2)) > settings.skin:
             rebuild = True
             break

@@ -323,25 +323,28 @@ def max_displacement(pos, ref_pos, n_active):
 
 
 @njit(cache=True)
-def moved_beyond_skin(pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point, skin):
+def moved_beyond_skin(particle_shift, pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point,
+                      skin):
     """The Verlet test of docs/design.md §2.11: d_p + max(d_p, d_b) > s, with d_p the largest
     displacement of the first ``n_active`` particles and d_b that of the facet vertices and
-    wall points since the last build."""
-    dp = max_displacement(pos, ref_pos, n_active)
+    wall points since the last build. ``particle_shift``: d_p if known (≥ 0: the last step's,
+    ``state.CLOCK_PARTICLE_SHIFT``, the particles not moved since), else measured here."""
+    dp = particle_shift if particle_shift >= 0.0 else max_displacement(pos, ref_pos, n_active)
     db = max_displacement(vertices, ref_vertices, vertices.shape[0])
     db = max(db, max_displacement(wall_point, ref_wall_point, wall_point.shape[0]))
     return dp + max(dp, db) > skin
 
 
 @njit(cache=True)
-def lists_outdated(pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point, wall_normal,
-                   ref_wall_normal, skin):
+def lists_outdated(particle_shift, pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point,
+                   wall_normal, ref_wall_normal, skin):
     """A wall turned, or :func:`moved_beyond_skin` (one compiled call)."""
     for w in range(wall_normal.shape[0]):
         for d in range(3):
             if wall_normal[w, d] != ref_wall_normal[w, d]:
                 return True
-    return moved_beyond_skin(pos, ref_pos, n_active, vertices, ref_vertices, wall_point, ref_wall_point, skin)
+    return moved_beyond_skin(particle_shift, pos, ref_pos, n_active, vertices, ref_vertices, wall_point,
+                             ref_wall_point, skin)
 
 
 class NeighborList:
@@ -412,10 +415,11 @@ class NeighborList:
             return np.empty(0, np.int32)
         return self.perm[self.pair_js]
 
-    def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None, ref_pos=None):
+    def needs_rebuild(self, pos, n_active, vertices, wall_point=None, wall_normal=None, ref_pos=None,
+                      particle_shift=-1.0):
         """Did particles (``pos`` against ``ref_pos``, default the positions of the last
-        build, in the same order), walls or vertices move more than the skin allows
-        (:func:`lists_outdated`)?"""
+        build, in the same order; or their largest displacement ``particle_shift`` if ≥ 0),
+        walls or vertices move more than the skin allows (:func:`lists_outdated`)?"""
         if self.ref_pos is None or self.ref_pos.shape[0] != n_active or self.perm is None:
             return True
         if wall_point is None:
@@ -423,8 +427,9 @@ class NeighborList:
         if wall_point.shape != self.ref_wall_point.shape:
             return True
         ref_vertices = self.ref_vertices if vertices.shape[0] else vertices
-        return lists_outdated(pos, self.ref_pos if ref_pos is None else ref_pos, n_active, vertices, ref_vertices,
-                              wall_point, self.ref_wall_point, wall_normal, self.ref_wall_normal, self.skin)
+        return lists_outdated(float(particle_shift), pos, self.ref_pos if ref_pos is None else ref_pos, n_active,
+                              vertices, ref_vertices, wall_point, self.ref_wall_point, wall_normal,
+                              self.ref_wall_normal, self.skin)
 
     def build(self, pos, radius, n_active, vertices, triangles, wall_point=None, wall_normal=None,
               ghost=None, ids=None, carried=None, new_order=False):

@@ -105,9 +105,12 @@ BOOK_INITIAL_TOTAL = BOOK_LAST + N_RATE
 BOOK_INITIALISED = BOOK_INITIAL_TOTAL + 1
 N_BOOKS = BOOK_INITIALISED + 1
 
-# The run clock handed to fused.advance: [time, steps done]
+# The run clock handed to fused.advance: [time, steps done, the owned particles' largest
+# displacement since the last list build after the last step (< 0: not known)]
 CLOCK_TIME = 0
 CLOCK_STEPS = 1
+CLOCK_PARTICLE_SHIFT = 2
+N_CLOCK = 3
 
 # Contact energy terms of one step, as summed per block: stored elastic energy at tⁿ,
 # then this step's dissipation (contact_laws.ContactEnergy has the same order).

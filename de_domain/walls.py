@@ -38,21 +38,37 @@ class PlaneWall:
     """Infinite plane through ``point`` with unit ``normal`` pointing to the particle side.
 
     ``velocity`` is a rigid translation applied by the engine each step (x += v Δt).
-    ``point`` may also be set between steps; the jump is booked as boundary work
-    with the previous step's force. ``force``: total force the particles exert on
-    the wall in the last step.
+    ``point`` may also be set (or edited in place) between steps; the jump is booked as
+    boundary work with the previous step's force. ``force``: total force the particles
+    exert on the wall in the last step.
+
+    ``point``, ``normal`` and ``velocity`` are (3,) arrays that setting overwrites in
+    place; an engine stores them as rows of its own wall arrays (:meth:`bind`), which
+    its kernels read and advance directly: nothing is copied between the walls and
+    the engine at each run.
     """
 
     def __init__(self, point, normal, material=0, velocity=(0.0, 0.0, 0.0)):
-        self.point = np.array(point, dtype=np.float64).reshape(3)
         normal = np.array(normal, dtype=np.float64).reshape(3)
         norm = np.linalg.norm(normal)
         if norm == 0.0:
             raise ValueError("PlaneWall: 'normal' must be a non-zero vector")
-        self.normal = normal / norm
-        self.material = int(material)
-        self.velocity = velocity
+        self._point = np.array(point, dtype=np.float64).reshape(3)
+        self._normal = normal / norm
+        self._velocity = np.array(velocity, dtype=np.float64).reshape(3)
+        self._material = np.array([material], dtype=np.int32)
         self.force = np.zeros(3)
+        self.bound_to, self.bound_row = None, -1  # the wall arrays holding this wall's state
+
+    def bind(self, arrays, row):
+        """Keep the state in row ``row`` of ``arrays`` = (point, normal, velocity, material)
+        (an engine's), the current values copied there."""
+        point, normal, velocity, material = arrays
+        point[row], normal[row], velocity[row], material[row] = self._point, self._normal, self._velocity, \
+            self._material[0]
+        self._point, self._normal, self._velocity = point[row], normal[row], velocity[row]
+        self._material = material[row:row + 1]
+        self.bound_to, self.bound_row = arrays, row
 
     @property
     def point(self):
@@ -60,7 +76,15 @@ class PlaneWall:
 
     @point.setter
     def point(self, value):
-        self._point = np.array(value, dtype=np.float64).reshape(3)
+        self._point[:] = np.asarray(value, dtype=np.float64).reshape(3)
+
+    @property
+    def normal(self):
+        return self._normal
+
+    @normal.setter
+    def normal(self, value):
+        self._normal[:] = np.asarray(value, dtype=np.float64).reshape(3)
 
     @property
     def velocity(self):
@@ -68,7 +92,15 @@ class PlaneWall:
 
     @velocity.setter
     def velocity(self, value):
-        self._velocity = np.array(value, dtype=np.float64).reshape(3)
+        self._velocity[:] = np.asarray(value, dtype=np.float64).reshape(3)
+
+    @property
+    def material(self):
+        return int(self._material[0])
+
+    @material.setter
+    def material(self, value):
+        self._material[0] = int(value)
 
 
 class FacetMesh:
