@@ -114,16 +114,17 @@ def sum_in_rank_order(comm, values):
 
 class RowGather:
     """Float64 rows of every rank, concatenated in rank order on every rank, through buffers
-    kept between calls: the row counts (``Allgather``, with a flag of each rank riding
-    along), then the rows (``Allgatherv``) — for rows gathered every step (the facet contacts
-    of :func:`de_domain.distributed.facet_vertex_forces`, with "a list rebuild is due")."""
+    kept between calls: the row counts (``Allgather``, with a flag and a value of each rank
+    riding along), then the rows (``Allgatherv``) — for rows gathered every step (the facet
+    contacts of :func:`de_domain.distributed.facet_vertex_forces`, with "a list rebuild is
+    due" and the particles' largest displacement)."""
 
     def __init__(self, comm, columns):
         self.comm, self.columns = comm, int(columns)
         self._local = np.empty((0, self.columns))
         self._all = np.empty((0, self.columns))
-        self._count = np.zeros(2, np.int64)              # (rows, flag) of this rank
-        self._counts = np.zeros((comm.size, 2), np.int64)  # ... of every rank
+        self._count = np.zeros(3)                 # (rows, flag, value) of this rank (counts exact in float64)
+        self._counts = np.zeros((comm.size, 3))   # ... of every rank
 
     def local_rows(self, capacity):
         """The buffer this rank writes its rows into, with room for ``capacity`` rows at least."""
@@ -131,18 +132,18 @@ class RowGather:
             self._local = np.empty((max(int(capacity), 2 * self._local.shape[0]), self.columns))
         return self._local
 
-    def gather(self, count, flag=False):
-        """The first ``count`` rows of every rank's :meth:`local_rows` buffer, in rank order, and
-        whether ``flag`` is true on any rank (collective)."""
-        self._count[0], self._count[1] = count, bool(flag)
+    def gather(self, count, flag=False, value=0.0):
+        """The first ``count`` rows of every rank's :meth:`local_rows` buffer, in rank order,
+        whether ``flag`` is true on any rank and the largest ``value`` (collective)."""
+        self._count[:] = count, bool(flag), value
         self.comm.Allgather(self._count, self._counts)
-        counts = self._counts[:, 0]
+        counts = self._counts[:, 0].astype(np.int64)
         total = int(counts.sum())
         if self._all.shape[0] < total:
             self._all = np.empty((max(total, 2 * self._all.shape[0]), self.columns))
         gathered = self._all[:total]
         self.comm.Allgatherv(self._local[:count], [gathered, counts * self.columns])
-        return gathered, bool(self._counts[:, 1].any())
+        return gathered, bool(self._counts[:, 1].any()), float(self._counts[:, 2].max())
 
 
 def gather_rows(comm, array):

@@ -36,7 +36,7 @@ from .comm import GhostExchange, RowGather, concatenate_records, exchange_record
 from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
 from .neighbors import MAX_SPREAD, ContactRecords, record_keys
 from .particles import ARRAY_FIELDS, Particles
-from .state import BOOK_INITIALISED
+from .state import BOOK_INITIALISED, CLOCK_PARTICLE_SHIFT
 from .walls import vertex_forces_of_rows
 
 ID_MASK = (1 << 32) - 1
@@ -227,6 +227,16 @@ def rebuild_due(engine, walls, vertices):
     return engine._rebuild_due(vertices, walls[0], walls[1])
 
 
+def shift_agreed(engine):
+    """Is the particles' largest displacement that the rebuild test reads (the engine's
+    ``CLOCK_PARTICLE_SHIFT``) the largest over all ranks? It is when the last step gathered
+    it with the facet contacts (:func:`facet_vertex_forces`) and the sorted copies hold the
+    state since. The rest of the test (walls, facet vertices) is the same on every rank, so
+    the test then is too: no all-reduce needed (the serial test's result: the largest
+    displacement over the ranks is the serial one, bit for bit)."""
+    return bool(engine.facets) and engine._copies_hold_state and engine._clock[CLOCK_PARTICLE_SHIFT] >= 0.0
+
+
 def run(engine, nsteps):
     """``nsteps`` distributed steps (module docstring), on the sorted copies (left
     holding the state at the end if ``engine.keep_sorted``)."""
@@ -235,7 +245,7 @@ def run(engine, nsteps):
     facet_state = engine._gather_facets()
     engine._book_boundary_jumps(walls[0], facet_state[0])
     due = rebuild_due(engine, walls, facet_state[0])
-    agreed = False  # is ``due`` already the same on every rank?
+    agreed = shift_agreed(engine)  # is ``due`` already the same on every rank?
     for _ in range(int(nsteps)):
         if due if agreed else domain.any_rank(due):
             engine._write_back()
@@ -292,13 +302,16 @@ def _facet_contact_rows(f_start, f_tri, ids, facet_lambda, facet_force, rows):
 def facet_vertex_forces(engine, due):
     """This step's facet vertex forces from the active candidates of all ranks, in
     (global id, triangle) order — the serial code's — and the impulses F Δt. Returns
-    whether ``due`` (a list rebuild) is true on any rank, agreed in the same messages."""
+    whether ``due`` (a list rebuild) is true on any rank, agreed in the same messages,
+    which also leave the largest particle displacement of all ranks in the engine's
+    clock (:func:`shift_agreed`)."""
     nl = engine.neighbors
     gather = engine.domain.facet_contacts
     local = gather.local_rows(engine.facet_force.shape[0])
     count = _facet_contact_rows(nl.f_start, nl.f_tri, engine.domain.ids, engine.facet_lambda, engine.facet_force,
                                 local)
-    rows, due_anywhere = gather.gather(count, due)
+    clock = engine._clock
+    rows, due_anywhere, clock[CLOCK_PARTICLE_SHIFT] = gather.gather(count, due, clock[CLOCK_PARTICLE_SHIFT])
     order = np.argsort(record_keys(rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)), kind="stable")
     rows = rows[order]
     force = engine._vertex_force
