@@ -207,3 +207,40 @@ def test_diverged_particle_stops_the_run_with_the_cause(steps):
     with pytest.raises(FloatingPointError, match="particle 17"):
         engine.run(steps)
         engine.run(1)  # the rebuild comes at the start of the next call when the run ends on it
+
+
+def test_the_last_steps_particle_shift_is_the_measured_one():
+    """Before a run on sorted copies that hold the state, the rebuild test reads the
+    particles' largest displacement from the last step (``state.CLOCK_PARTICLE_SHIFT``):
+    it is what a pass over the particles measures, to the bit, through list rebuilds."""
+    from de_domain.neighbors import max_displacement
+    from de_domain.state import CLOCK_PARTICLE_SHIFT
+    engine = loose_pile()
+    engine.keep_sorted = True
+    shifts = []
+    for _ in range(60):
+        engine.run(5)
+        copies = engine._sorted
+        shifts.append(engine._clock[CLOCK_PARTICLE_SHIFT])
+        assert shifts[-1] == max_displacement(copies.pos, copies.ref_pos, copies.pos.shape[0])
+    assert engine.neighbors.n_builds > 2 and min(shifts) >= 0.0 and max(shifts) > 0.0
+
+
+def test_a_wall_given_to_two_engines_starts_each_run_where_the_last_left_it():
+    """A plane wall keeps its state in a row of its engine's arrays (``PlaneWall.bind``);
+    given to two engines, each run starts where the other engine's last run left it, and a
+    point set from outside is where the next run starts."""
+    a, b = loose_pile(), loose_pile()
+    lid = a.walls[5]
+    b.walls[5] = lid
+    start = lid.point.copy()
+    step = 0.3 * a.dt  # the lid descends at 0.3 m/s
+    a.run(5)
+    b.run(5)
+    a.run(1)
+    assert lid.point[2] == pytest.approx(start[2] - 11 * step, rel=0.0, abs=1e-15)
+    assert np.array_equal(a._wall_arrays()[0][5], lid.point)
+    lid.point = start
+    b.run(2)
+    assert lid.point[2] == pytest.approx(start[2] - 2 * step, rel=0.0, abs=1e-15)
+    assert np.array_equal(b._walls_state[0][5], lid.point)

@@ -98,3 +98,22 @@ def test_the_compiled_copy_leaves_petscs_matrices_as_they_were():
     """(petsc4py's Mat.convert works in place unless given a matrix to fill.)"""
     solid = make(True, "mixed", None)
     assert solid._stiffness.getType() == "seqbaij"
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("compiled", [True, False])
+def test_forces_on_ghost_nodes_are_not_read(compiled):
+    """On several ranks a force is given by the rank owning its node: the rows of
+    ``external_force`` for ghost nodes are ignored, by both step paths."""
+    runs = []
+    for on_ghosts in (False, True):
+        s = make(compiled, "mixed", None, MPI.COMM_WORLD)
+        s.external_force[:s.n_owned_nodes] = 0.05
+        if on_ghosts:
+            s.external_force[s.n_owned_nodes:] = 1e3
+        for _ in range(20):
+            s.step()
+        runs.append(s.displacement.copy())
+    if MPI.COMM_WORLD.size > 1:
+        assert MPI.COMM_WORLD.allreduce(s.n_nodes - s.n_owned_nodes) > 0  # there are ghost rows
+    assert np.array_equal(*runs)
