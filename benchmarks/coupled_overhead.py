@@ -9,8 +9,10 @@ Cases (``cosim`` coupled cases, built from ``runs/coupled_footing_on_sand.toml``
 * ``large``: the same elastic plate, 60 × 60 × 5 mm with 2 mm elements, on the W1 bed of
   20,000 grains (``benchmarks/beds.py``, box 76 × 76 mm): an interface of ≈ 2,600 triangles.
 
-each with 1 and 10 DEM substeps per FE step (``coupling.subcycles``). For each case,
-substep count and rank count the driver runs itself as a worker
+each with 1 and 10 DEM substeps per FE step (``coupling.subcycles``), and on several ranks with
+the FE replicated on each (``coupling.fe_partition``, the default) or partitioned over them
+(``--fe-partition replicated distributed`` for both). For each case, substep count, rank count
+and FE partition the driver runs itself as a worker
 (``mpirun -n N python benchmarks/coupled_overhead.py --worker ...``, 1 Numba thread per
 rank). A worker prepares the case as ``cosim run`` does, warms up, then times, REPEATS
 times interleaved, each of the three first in turn (so that the machine's drift and the
@@ -18,9 +20,10 @@ order hit all three alike):
 
 * ``coupled``: BLOCK coupled FE steps as ``cosim run`` makes them
   (``cosim.compiled_coupling.CoupledStepper``, ``cosim.apps.coupled.PROGRESS_CHUNK`` FE
-  steps a call: compiled calls on one rank, step by step on several);
-* ``step by step`` (one rank only): the same from Python (``cosim.apps.coupled.coupled_step``,
-  what several ranks run), with the time split into FE step, interface out (vertex
+  steps a call: compiled calls on one rank; on several, with the FE replicated, each FE step
+  and its interface motion in one compiled call; with the FE partitioned, step by step);
+* ``step by step``: the same from Python (``cosim.apps.coupled.coupled_step``,
+  what several ranks run with the FE partitioned), with the time split into FE step, interface out (vertex
   positions and velocities to the DEM), DEM window, interface in (impulse to FE forces);
 * ``DEM alone``: the same engine for BLOCK × subcycles DEM steps in one ``Engine.run`` call,
   against the interface as fixed facets (vertex velocities zero);
@@ -55,9 +58,9 @@ LARGE_OVERRIDES = [
 ]
 
 
-def case_overrides(case, subcycles):
+def case_overrides(case, subcycles, fe_partition="replicated"):
     """``--set`` overrides that make ``case`` (flagship | large) from the flagship file."""
-    overrides = [f"coupling.subcycles={subcycles}", "output.vtk=false"]
+    overrides = [f"coupling.subcycles={subcycles}", f"coupling.fe_partition={fe_partition}", "output.vtk=false"]
     if case == "large":
         sys.path.insert(0, str(ROOT / "benchmarks"))
         from beds import bed_file, load_dump
@@ -72,7 +75,7 @@ def _median(values):
     return values[len(values) // 2]
 
 
-def worker(case, subcycles, out_json):
+def worker(case, subcycles, fe_partition, out_json):
     import numpy as np
     from mpi4py import MPI
 
@@ -82,7 +85,7 @@ def worker(case, subcycles, out_json):
     from cosim.compiled_coupling import CoupledStepper
 
     comm = MPI.COMM_WORLD
-    loaded, _ = load_case(FLAGSHIP, case_overrides(case, subcycles))
+    loaded, _ = load_case(FLAGSHIP, case_overrides(case, subcycles, fe_partition))
     built = coupled.prepare(loaded, FLAGSHIP, OUT / "coupled_overhead_run", resume=False)
     solid, interface, engine, n_sub = built["solid"], built["interface"], built["engine"], built["subcycles"]
 
@@ -120,9 +123,9 @@ def worker(case, subcycles, out_json):
 
     trial = elapsed(lambda: coupled_block(20)) / 20
     block = max(20, int(comm.bcast(MIN_SECONDS / trial, root=0)))
-    blocks = [("coupled", coupled_block if stepper.compiled else step_by_step_block), ("dem", dem_block),
-              ("fe", fe_block)]
-    if stepper.compiled:
+    faster = stepper.compiled or stepper.fe_compiled  # than step by step from Python
+    blocks = [("coupled", coupled_block if faster else step_by_step_block), ("dem", dem_block), ("fe", fe_block)]
+    if faster:
         blocks.append(("step_by_step", step_by_step_block))
     times = {kind: [] for kind, _ in blocks}
     builds = {"coupled": 0, "dem": 0}  # neighbour-list builds (rank 0) during the timed blocks
@@ -134,7 +137,7 @@ def worker(case, subcycles, out_json):
             times[kind].append(elapsed(lambda work=work: work(block)) / block)
             if kind in builds:
                 builds[kind] += engine.neighbors.n_builds - before
-    if not stepper.compiled:  # the coupled block was step by step
+    if not faster:  # the coupled block was step by step
         times["step_by_step"] = times["coupled"]
     split = np.zeros(4)
     comm.Allreduce(parts, split, op=MPI.MAX)
@@ -145,8 +148,10 @@ def worker(case, subcycles, out_json):
     n_grains = engine.domain.n_global if engine.domain is not None else engine.particles.n
     row = {"case": case, "grains": int(n_grains), "facets": int(len(interface.facets.triangles)),
            "fe_cells": int(solid.mesh.topology.index_map(3).size_global), "subcycles": n_sub, "ranks": comm.size,
+           "fe_partition": fe_partition if comm.size > 1 else "-",
            "block": block, "coupled_us": 1e6 * med["coupled"], "dem_us": 1e6 * med["dem"], "fe_us": 1e6 * med["fe"],
            "overhead": med["coupled"] / (med["dem"] + med["fe"]), "compiled": stepper.compiled,
+           "fe_compiled": stepper.fe_compiled,
            "step_by_step_us": 1e6 * med["step_by_step"],
            "step_by_step_overhead": med["step_by_step"] / (med["dem"] + med["fe"]),
            "split_us": dict(zip(("fe", "out", "dem", "in"), (1e6 * split).tolist(), strict=True)),
@@ -161,12 +166,15 @@ def main():
     parser.add_argument("--cases", nargs="+", default=["flagship", "large"], choices=["flagship", "large"])
     parser.add_argument("--subcycles", nargs="+", type=int, default=[1, 10])
     parser.add_argument("--ranks", nargs="+", type=int, default=[1, 2])
-    parser.add_argument("--worker", nargs=3, metavar=("CASE", "SUBCYCLES", "JSON"), help=argparse.SUPPRESS)
+    parser.add_argument("--fe-partition", nargs="+", default=["replicated"], choices=["replicated", "distributed"],
+                        help="FE layouts on several ranks (coupling.fe_partition)")
+    parser.add_argument("--worker", nargs=4, metavar=("CASE", "SUBCYCLES", "FE_PARTITION", "JSON"),
+                        help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        case, subcycles, out_json = args.worker
+        case, subcycles, fe_partition, out_json = args.worker
         try:
-            worker(case, int(subcycles), out_json)
+            worker(case, int(subcycles), fe_partition, out_json)
         except BaseException:  # one rank failing ends all (no rank left waiting in a collective)
             import traceback
 
@@ -180,22 +188,25 @@ def main():
     env = dict(os.environ, NUMBA_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
     rows = []
-    print(f"{'case':9s} {'grains':>7s} {'facets':>6s} {'sub':>4s} {'ranks':>5s} | {'coupled':>9s} {'DEM alone':>9s} "
+    print(f"{'case':9s} {'grains':>7s} {'facets':>6s} {'sub':>4s} {'ranks':>5s} {'FE':>11s} | {'coupled':>9s} "
+          f"{'DEM alone':>9s} "
           f"{'FE alone':>9s} {'overhead':>8s} | step by step, overhead | split of a step-by-step step: FE / out / "
           "DEM / in [us] | particle-steps/s | list builds per 1000 DEM steps: coupled / DEM alone")
     for case in args.cases:
         for subcycles in args.subcycles:
-            for ranks in args.ranks:
-                out_json = OUT / f"coupled_overhead_{case}_{subcycles}_{ranks}.json"
+            for ranks, partition in [(r, p) for r in args.ranks for p in (args.fe_partition if r > 1 else ["-"])]:
+                out_json = OUT / f"coupled_overhead_{case}_{subcycles}_{ranks}_{partition}.json"
                 cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), sys.executable, __file__,
-                       "--worker", case, str(subcycles), str(out_json)]
+                       "--worker", case, str(subcycles), "replicated" if partition == "-" else partition,
+                       str(out_json)]
                 done = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
                 if done.returncode:
                     sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
                 row = json.loads(out_json.read_text())
                 rows.append(row)
                 s, b = row["split_us"], row["builds_per_1000_steps"]
-                print(f"{case:9s} {row['grains']:7d} {row['facets']:6d} {row['subcycles']:4d} {ranks:5d} | "
+                print(f"{case:9s} {row['grains']:7d} {row['facets']:6d} {row['subcycles']:4d} {ranks:5d} "
+                      f"{row['fe_partition']:>11s} | "
                       f"{row['coupled_us']:7.0f}us {row['dem_us']:7.0f}us {row['fe_us']:7.0f}us "
                       f"{row['overhead']:7.2f}x | {row['step_by_step_us']:7.0f}us "
                       f"{row['step_by_step_overhead']:5.2f}x | "

@@ -357,6 +357,11 @@ class CouplingSection(_Section):
         description="time constant tau of an optional low-pass filter on the interface force: each FE step "
                     "the FE gets 1 - exp(-dt_FE/tau) of the impulse collected and not yet applied, the rest "
                     "stays in transit (momentum exactly conserved); 0: off, the whole window's impulse [s]")
+    fe_partition: Literal["replicated", "distributed"] = Field(
+        default="replicated",
+        description="under mpirun: 'replicated', every rank steps the whole FE mesh (no FE messages; the run "
+                    "bit-identical to one rank's); 'distributed', the FE mesh partitioned over the ranks "
+                    "(for FE meshes whose step costs more than a DEM step's share)")
 
 
 # --------------------------------------------------------------------------- footing (docs/design.md §7)

@@ -1,5 +1,5 @@
 """The coupling schedule (docs/design.md §5.3) for many FE steps in one compiled call, on one
-MPI rank.
+MPI rank; on several, each FE step with its interface motion in one compiled call.
 
 Per FE step the schedule is: the FE step, the interface vertices set from the FE state, a
 DEM window of ``subcycles`` steps, the window's impulse handed to the FE. Done from Python
@@ -16,6 +16,11 @@ The compiled loop returns to Python when the DEM lists must be rebuilt, before o
 window (the build is Python); :class:`CoupledStepper` then finishes that window, and the
 next FE step, the way the step-by-step schedule does, so that a rebuild happens at the same
 instant with the same vertex positions.
+
+On several ranks the DEM steps from Python (its ghost exchange and facet force gather between
+the steps, :mod:`de_domain.distributed`). With the FE replicated on every rank
+(``coupling.fe_partition``), the FE step and the interface motion are one compiled call,
+:func:`fe_step_and_motion`, instead of ≈ 10 calls from Python (≈ 60 µs a step).
 """
 from __future__ import annotations
 
@@ -64,11 +69,15 @@ class InterfaceArrays(NamedTuple):
 
 
 @njit(cache=True, error_model="numpy")
+def _start_position(fe, coordinates, a, d):
+    """Coordinate d of FE node a at the start of the window, X + u^n = X + (u^{n+1} − Δt v^{n+½})."""
+    return coordinates[a, d] + (fe.nodal.displacement[3 * a + d] - fe.settings.dt * fe.nodal.velocity[3 * a + d])
+
+
+@njit(cache=True, error_model="numpy")
 def _send_motion(fe, interface, meshes):
-    """§5.3 step 2: the vertices start at X + u^n = X + (u^{n+1} − Δt v^{n+½}) and move with v^{n+½};
-    the jump from where the DEM left them is booked as boundary work; the impulse starts at zero."""
-    dt = fe.settings.dt
-    u = fe.nodal.displacement
+    """§5.3 step 2: the vertices start at X + u^n and move with v^{n+½}; the jump from where the
+    DEM left them is booked as boundary work; the impulse starts at zero."""
     v = fe.nodal.velocity
     vertices, velocity, impulse, force = meshes.vertices, meshes.vertex_velocity, meshes.vertex_impulse, \
         meshes.vertex_force
@@ -77,12 +86,28 @@ def _send_motion(fe, interface, meshes):
         a = interface.node[k]
         r = interface.first_row + k
         for d in range(3):
-            x = interface.coordinates[a, d] + (u[3 * a + d] - dt * v[3 * a + d])
+            x = _start_position(fe, interface.coordinates, a, d)
             work -= force[r, d] * (x - vertices[r, d])
             vertices[r, d] = x
             velocity[r, d] = v[3 * a + d]
             impulse[r, d] = 0.0
     interface.jump_work[0] += work
+
+
+@njit(cache=True, error_model="numpy")
+def fe_step_and_motion(step, fe, node, coordinates, vertices, vertex_velocity, vertex_impulse):
+    """The FE step with the amplitudes of row ``step`` of ``fe`` (:class:`FeSteps`), then §5.3
+    step 2 on the interface facet mesh's own arrays, its vertex k at FE node ``node[k]``: at
+    X + u^n, moving with v^{n+½}, no impulse yet (the DEM's run books the vertices' jump)."""
+    velocity_update(fe.settings, fe.operators, fe.nodal, fe.load_amplitudes[step], fe.prescribed_amplitudes[step])
+    displacement_update(fe.settings, fe.operators, fe.nodal)
+    v = fe.nodal.velocity
+    for k in range(node.size):
+        a = node[k]
+        for d in range(3):
+            vertices[k, d] = _start_position(fe, coordinates, a, d)
+            vertex_velocity[k, d] = v[3 * a + d]
+            vertex_impulse[k, d] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -152,13 +177,17 @@ def coupled_steps(n_fe, subcycles, fe, interface, dem, books, clock, status):
 
 class CoupledStepper:
     """FE steps of the coupling schedule: in compiled calls (:func:`coupled_steps`) when the
-    FE solid steps compiled and the DEM engine is serial (one rank), else step by step
-    (``step_by_step``). Bit-identical either way."""
+    FE solid steps compiled and the DEM engine is serial (one rank); with a distributed engine
+    and the whole FE on this rank, each FE step and its interface motion in one compiled call
+    (:func:`fe_step_and_motion`); else step by step (``step_by_step``). Bit-identical all ways."""
 
     def __init__(self, solid, engine, interface, subcycles):
         self.solid, self.engine, self.interface, self.subcycles = solid, engine, interface, int(subcycles)
         rows = [engine.facet_rows(k) for k, mesh in enumerate(engine.facets) if mesh is interface.facets]
-        self.compiled = solid.compiled_arguments() is not None and engine.domain is None and len(rows) == 1
+        local_fe = solid.compiled_arguments() is not None
+        self.compiled = local_fe and engine.domain is None and len(rows) == 1
+        self.fe_compiled = local_fe and engine.domain is not None  # the DEM steps from Python
+        self._fe_step = CachedEntry(fe_step_and_motion)
         self._python_step_next = True  # the first window (lists built, gathered) goes step by step
         self._status = np.zeros(4, np.int64)
         # the compiled call's arguments are the same array objects call after call (amplitude
@@ -172,16 +201,19 @@ class CoupledStepper:
         self.window_impulse = np.zeros(3)
         self.fe_steps_compiled = 0        # FE steps done in compiled calls ...
         self.windows_finished = 0         # ... of which windows stopped for a rebuild, finished from Python
-        if self.compiled:
-            self._first_row = rows[0].start
-            self._vertex_node = np.empty(len(interface.facets.vertices), np.int64)  # one rank: every node owned
-            self._vertex_node[interface.owned_vertices] = interface.owned_nodes
+        if local_fe:
+            self._first_row = rows[0].start if rows else 0
+            self._vertex_node = np.empty(len(interface.facets.vertices), np.int64)  # FE on this rank: every
+            self._vertex_node[interface.owned_vertices] = interface.owned_nodes    # node owned
 
     def run(self, count, step_by_step):
         """``count`` FE steps; ``step_by_step(solid, engine, interface, subcycles)`` is one FE step
         and its window from Python (:func:`cosim.apps.coupled.coupled_step`)."""
         done = 0
         while done < count:
+            if self.fe_compiled and not self.solid.energy_due():
+                done += self._fe_compiled_steps(count - done)
+                continue
             started = None
             if self.compiled and not self._python_step_next and not self.solid.energy_due() and \
                     self.engine.steps_before_reorder() >= self.subcycles:
@@ -194,6 +226,34 @@ class CoupledStepper:
             else:
                 done += self._compiled_steps(count - done, started)
 
+    def _amplitude_rows(self, count):
+        """:class:`FeSteps` with the amplitudes of the next ``count`` FE steps, in arrays kept
+        from call to call (see ``_kernel``)."""
+        solid = self.solid
+        if count > self._capacity:
+            self._capacity = max(count, 64)
+            self._amplitudes = solid.compiled_amplitudes(self._capacity)
+        return FeSteps(*solid.compiled_arguments(), *solid.compiled_amplitudes(count, *self._amplitudes))
+
+    def _fe_compiled_steps(self, count):
+        """Up to ``count`` FE steps (until the next FE energy record), each in one
+        :func:`fe_step_and_motion` call, then its window on the distributed DEM and the
+        interface forces from Python. Returns the FE steps done."""
+        solid, engine, interface = self.solid, self.engine, self.interface
+        if solid.energy_interval > 0:
+            count = min(count, solid.energy_interval - solid.step_count % solid.energy_interval)
+        fe = self._amplitude_rows(count)
+        facets = interface.facets
+        from cosim.apps import dem as dem_app
+        for step in range(count):
+            self._fe_step(step, fe, self._vertex_node, solid.node_coordinates, facets.vertices, facets.vertex_velocity,
+                          facets.vertex_impulse)
+            solid.finish_compiled_steps(1)
+            dem_app.advance(engine, self.subcycles)
+            interface.receive_forces(solid.dt)
+            self.window_impulse += facets.vertex_impulse.sum(axis=0)
+        return count
+
     def _compiled_steps(self, count, started):
         """Up to ``count`` FE steps in one :func:`coupled_steps` call (fewer when the lists
         must be rebuilt, the spatial order refreshed or the FE energies recorded first);
@@ -202,10 +262,7 @@ class CoupledStepper:
         count = min(count, engine.steps_before_reorder() // n_sub)
         if solid.energy_interval > 0:
             count = min(count, solid.energy_interval - solid.step_count % solid.energy_interval)
-        if count > self._capacity:
-            self._capacity = max(count, 64)
-            self._amplitudes = solid.compiled_amplitudes(self._capacity)
-        fe = FeSteps(*solid.compiled_arguments(), *solid.compiled_amplitudes(count, *self._amplitudes))
+        fe = self._amplitude_rows(count)
         dem, books, clock = started
         jump = self._jump
         jump[0] = engine.boundary_jump_work

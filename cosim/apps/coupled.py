@@ -1,6 +1,9 @@
 """Case kind ``coupled``: an FE solid and DEM particles that touch through a tagged
-FE boundary (docs/design.md §5), under ``mpirun -n N`` (FE and DEM both distributed
-over all ranks; the DEM bit-identical to a serial one for the same interface motion).
+FE boundary (docs/design.md §5), under ``mpirun -n N``: the DEM distributed over all ranks
+(bit-identical to a serial one for the same interface motion); the FE either replicated,
+every rank stepping the whole mesh (``coupling.fe_partition = "replicated"``, the default: no
+FE messages, and the whole run bit-identical to one rank's), or partitioned over the ranks
+(``"distributed"``, for FE meshes whose step costs more than a rank's share of the DEM step).
 
 Per FE step (the coupling schedule, docs/design.md §5.3):
   1. the FE advances v^{n+½}, u^{n+1} with the interface force of the last window;
@@ -16,6 +19,7 @@ DEM diagnostics), its PNG, ``fields.xdmf`` (FE, with the interface traction f_a 
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from pathlib import Path
@@ -53,23 +57,57 @@ COLUMNS = ["time", "fe_step", "interface_force_x", "interface_force_y", "interfa
 FE_CHECKPOINT_STEM = "checkpoint.fe"
 
 
-def checkpoint_paths(out_dir, comm):
-    """(DEM checkpoint: one file for all ranks, this rank's FE checkpoint)."""
-    return (Path(out_dir) / "checkpoint.npz",
-            Path(out_dir) / f"{FE_CHECKPOINT_STEM}.rank{comm.rank}of{comm.size}.npz")
+def dem_checkpoint_path(out_dir):
+    """The DEM checkpoint: one file for all ranks."""
+    return Path(out_dir) / "checkpoint.npz"
+
+
+def fe_checkpoint_path(out_dir, solid):
+    """This rank's part of the FE checkpoint, named by the FE's communicator (a replicated FE is
+    one part, ``rank0of1``, as on one rank)."""
+    return Path(out_dir) / f"{FE_CHECKPOINT_STEM}.rank{solid.comm.rank}of{solid.comm.size}.npz"
+
+
+def writes_fe_files(solid):
+    """Whether this rank writes the FE's files (its checkpoint part, the XDMF fields): every rank
+    when the FE is partitioned over all, rank 0 alone when every rank holds the whole FE."""
+    return solid.comm.size == mpi_comm().size or is_root()
+
+
+def fe_communicator(case):
+    """The FE's communicator: all ranks (``coupling.fe_partition = "distributed"``), or this
+    rank alone (``"replicated"``: every rank builds and steps the whole mesh)."""
+    from mpi4py import MPI
+    return mpi_comm() if case.coupling.fe_partition == "distributed" else MPI.COMM_SELF
+
+
+def check_replicas(solid):
+    """A replicated FE: every rank must have meshed the same nodes and cells (gmsh and DOLFINx
+    are deterministic; this guards the DEM, which sees the interface facets of each rank's
+    mesh); collective."""
+    comm = mpi_comm()
+    if solid.comm.size == comm.size:
+        return
+    digest = hashlib.sha256(solid.node_coordinates.tobytes())
+    digest.update(solid.input_node_index.tobytes())
+    digest.update(solid.mesh.geometry.dofmap.array.tobytes())
+    if len(set(comm.allgather(digest.hexdigest()))) > 1:
+        raise RuntimeError("the replicated FE mesh differs between the ranks; set coupling.fe_partition = "
+                           "'distributed'")
 
 
 def prepare(case, case_path, out_dir, resume):
-    """The FE solid, the interface, the DEM engine (distributed when there are several
-    ranks) and the two time steps, each within its stability limit; or, to resume, the
-    FE state of this rank count and the DEM state from the checkpoints; collective."""
+    """The FE solid (replicated or partitioned, ``fe_communicator``), the interface, the DEM
+    engine (distributed when there are several ranks) and the two time steps, each within its
+    stability limit; or, to resume, the FE and DEM states from the checkpoints; collective."""
     from cosim.errors import CaseError
     comm = mpi_comm()
-    dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
+    dem_checkpoint = dem_checkpoint_path(out_dir)
     if resume and comm.allgather(dem_checkpoint.exists()).count(False):
         raise CaseError(case_path, "--resume", str(dem_checkpoint),
                         "no coupled checkpoint in the output folder; run without --resume")
-    solid = fe_app.build_solid(case, case_path)
+    solid = fe_app.build_solid(case, case_path, fe_communicator(case))
+    check_replicas(solid)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
     interface = Interface(solid, case.coupling.interface, material, case.coupling.smoothing_time)
     distributed = comm if comm.size > 1 else None
@@ -100,22 +138,26 @@ def prepare(case, case_path, out_dir, resume):
 
 
 def save_checkpoint(out_dir, solid, engine, interface):
-    """The DEM (one file, collective) and every rank's FE state, committed together
+    """The DEM (one file, collective) and the FE state (``fe_checkpoint_path``), committed together
     (:func:`cosim.outputs.commit_checkpoint`); collective."""
     commit_checkpoint(out_dir, stage_checkpoint(out_dir, solid, engine, interface))
 
 
 def stage_checkpoint(out_dir, solid, engine, interface):
-    """Write the DEM checkpoint (collective) and this rank's FE state to their staged files;
-    returns this rank's files by their final names, for the commit. The impulse in transit is
+    """Write the DEM checkpoint (collective) and this rank's part of the FE state (if it writes one,
+    ``writes_fe_files``) to their staged files; returns this rank's files by their final names,
+    for the commit. The impulse in transit is
     the interface facets' vertex impulse in the DEM file, and the impulse held back by the
     smoothing (before that window's joined it) in the FE files; the FE's interface force is made
     again from the two on resume."""
-    comm = mpi_comm()
-    dem_checkpoint, fe_checkpoint = checkpoint_paths(out_dir, comm)
+    dem_checkpoint = dem_checkpoint_path(out_dir)
     save_engine_checkpoint(engine, staged(dem_checkpoint))
-    fe_app.write_checkpoint(solid, staged(fe_checkpoint), extra={"interface_held": interface.held_before})
-    return [fe_checkpoint] + ([dem_checkpoint] if comm.rank == 0 else [])
+    finals = [dem_checkpoint] if is_root() else []
+    if writes_fe_files(solid):
+        fe_checkpoint = fe_checkpoint_path(out_dir, solid)
+        fe_app.write_checkpoint(solid, staged(fe_checkpoint), extra={"interface_held": interface.held_before})
+        finals.append(fe_checkpoint)
+    return finals
 
 
 def time_steps(dem_dt, fe_dt_stable, subcycles=None):
@@ -135,9 +177,11 @@ def run(prepared):
     total = case.time.steps or int(math.ceil(case.time.duration / fe_dt))
     interval = case.output.interval or total * fe_dt / 20
     every = max(1, int(round(interval / fe_dt)))
+    ranks = mpi_comm().size
+    layout = "" if ranks == 1 else f", DEM on {ranks} MPI ranks, FE " + \
+        ("partitioned over them" if solid.comm.size == ranks else "on each (replicated)")
     say(f"[{case.case.name}] FE dt = {fe_dt:.3e} s, DEM dt = {dem_dt:.3e} s ({n_sub} DEM steps per FE step), "
-        f"{total} FE steps, output every {every}"
-        + (f", FE and DEM on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
+        f"{total} FE steps, output every {every}{layout}")
 
     # on resume, the rows from the checkpoint's instant on are written again (that instant's
     # only if it is an output step, as in an uninterrupted run)
@@ -148,7 +192,7 @@ def run(prepared):
         if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
     fields = FieldWriter(solid, out_dir / ("fields_from_step%d" % solid.step_count if resume else "fields"),
-                         extra_fields=[interface.traction_field])
+                         extra_fields=[interface.traction_field]) if writes_fe_files(solid) else None
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=solid.step_count)
     if resume:
         interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
@@ -161,14 +205,16 @@ def run(prepared):
         stepper.run(min(PROGRESS_CHUNK, every - solid.step_count % every, total - solid.step_count), coupled_step)
         if solid.step_count % every == 0 or solid.step_count == total:
             record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
-            fields.write()
+            if fields is not None:
+                fields.write()
         progress.update(solid.step_count, solid.time)
         if mpi_comm().bcast(time.perf_counter() - last_checkpoint > case.output.checkpoint_interval, root=0):
             save_checkpoint(out_dir, solid, engine, interface)
             last_checkpoint = time.perf_counter()
     progress.update(solid.step_count, solid.time, force=True)
     save_checkpoint(out_dir, solid, engine, interface)
-    fields.close()
+    if fields is not None:
+        fields.close()
     if series is not None:
         series.close()
         from cosim.plots import plot_panels
@@ -195,13 +241,13 @@ def coupled_step(solid, engine, interface, subcycles):
 
 
 def momentum(solid, engine, interface):
-    """Linear momentum (N s) of the FE nodes, of the particles and of the impulse in transit."""
+    """Linear momentum (N s) of the FE nodes, of the particles and of the impulse in transit
+    (each summed over the ranks that hold a part of it)."""
     owned = slice(0, solid.n_owned_nodes)
-    comm = mpi_comm()
-    fe = sum_in_rank_order(comm, np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
+    fe = sum_in_rank_order(solid.comm, np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
     p = engine.particles
     mine = p.owned
-    de = sum_in_rank_order(comm, np.sum(p.mass[mine, None] * p.vel[mine], axis=0))
+    de = sum_in_rank_order(mpi_comm(), np.sum(p.mass[mine, None] * p.vel[mine], axis=0))
     return fe, de, interface.pending_impulse()
 
 
@@ -209,9 +255,8 @@ def record(solid, engine, interface, series, frames, out_dir, vtk):
     fe_app.check_finite(solid)
     fe, de, transit = momentum(solid, engine, interface)
     nodes = interface.owned_nodes
-    comm = mpi_comm()
-    uz = comm.allreduce(float(np.sum(solid.displacement[nodes, 2])))
-    count = comm.allreduce(len(nodes))
+    uz = solid.comm.allreduce(float(np.sum(solid.displacement[nodes, 2])))
+    count = solid.comm.allreduce(len(nodes))
     from de_domain import diagnostics
     from de_domain.io import write_frame
     force = interface.facets.vertex_impulse.sum(axis=0) / solid.dt

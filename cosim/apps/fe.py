@@ -46,16 +46,18 @@ def default_alpha_tau(case):
     return stable_alpha_tau(max(m.nu for m in case.fe.materials))
 
 
-def build_solid(case, case_path):
-    """The ExplicitSolid of the case's [fe] section; a mesh gmsh cannot make is a CaseError."""
+def build_solid(case, case_path, comm=None):
+    """The ExplicitSolid of the case's [fe] section, its mesh partitioned over ``comm`` (default
+    all ranks; ``MPI.COMM_SELF``: the whole mesh on this rank); a mesh gmsh cannot make is a
+    CaseError."""
     from fe_domain.mesh import MeshError
     try:
-        return _solid(case, case_path)
+        return _solid(case, case_path, comm or mpi_comm())
     except MeshError as exc:
         raise CaseError(case_path, "fe.mesh", case.fe.mesh, f"cannot be meshed: {exc}") from None
 
 
-def _solid(case, case_path):
+def _solid(case, case_path, comm):
     from fe_domain.build import build_solid as build
     fe = case.fe
     if len(fe.materials) == 1 and fe.materials[0].group is None:
@@ -68,7 +70,8 @@ def _solid(case, case_path):
                  loads=[drop_none(load) for load in fe.loads],
                  damping=fe.damping.model_dump() if fe.damping else None,
                  formulation=fe.formulation, alpha_tau=fe.alpha_tau or default_alpha_tau(case),
-                 safety_factor=case.time.safety_factor, geometry_parameters=fe.geometry_parameters or None)
+                 safety_factor=case.time.safety_factor, geometry_parameters=fe.geometry_parameters or None,
+                 comm=comm)
 
 
 def run(prepared):

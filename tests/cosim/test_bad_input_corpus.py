@@ -259,6 +259,7 @@ CORPUS = [
     Bad("coupled", "not a surface physical group", sets=['coupling.interface=["nowhere"]']),
     Bad("coupled", "must be one of the materials", sets=['coupling.material="steel"']),
     Bad("coupled", "coupling.subcycles", sets=["coupling.subcycles=0"]),
+    Bad("coupled", "'replicated' or 'distributed'", sets=['coupling.fe_partition="both"']),
     # dt_DE = dt_FE / subcycles is never above time.safety_factor (<= 0.5) x its critical step
     Bad("coupled", "time.safety_factor", sets=["time.safety_factor=0.9"], label="dt_DE above half its critical step"),
     Bad("coupled", "needs a [coupling] section", cut="[coupling]", label="no [coupling]"),

@@ -3,8 +3,9 @@
 With no gravity, walls or supports the only forces are the contacts between grains
 and the plate's interface facets, so the linear momentum of FE + DEM + the impulse
 in transit (collected by the DEM in the last window, not yet applied to the FE) is
-conserved to round-off; the result must not depend on the number of MPI ranks, and
-only weakly (time-discretisation error) on the number of DEM substeps per FE step.
+conserved to round-off; the result must not depend on the number of MPI ranks (with the
+FE replicated on every rank, to the last bit), and only weakly (time-discretisation error)
+on the number of DEM substeps per FE step.
 """
 import csv
 import os
@@ -58,11 +59,32 @@ def run(case, out, *extra, mpi=0):
 def one_rank(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("coupled")
     case = impact_case(tmp)
-    return case, run(case, tmp / "one")[0]
+    return case, run(case, tmp / "one")[0], tmp / "one"
+
+
+def is_dem_state(key):
+    """A DEM checkpoint array of the state (particles, facets with their forces and impulses,
+    walls, clock), not of the lists (built at other instants after a resume) nor the energy
+    books (per-rank sums added in rank order: equal to round-off only)."""
+    return key.startswith(("p_", "facet0_", "wall_")) or key in ("step_count", "config", "energy_jump")
+
+
+def assert_same_state(out_a, out_b):
+    """The FE checkpoints, and the DEM state arrays of the two DEM checkpoints, equal bit for bit."""
+    with np.load(out_a / "checkpoint.fe.rank0of1.npz") as x, np.load(out_b / "checkpoint.fe.rank0of1.npz") as y:
+        assert set(x.files) == set(y.files)
+        for key in x.files:
+            np.testing.assert_array_equal(x[key], y[key], err_msg=key)
+    with np.load(out_a / "checkpoint.npz") as x, np.load(out_b / "checkpoint.npz") as y:
+        state = sorted(filter(is_dem_state, x.files))
+        assert {"p_pos", "p_vel", "p_angvel", "facet0_vertices", "facet0_vertex_impulse", "step_count"} <= set(state)
+        assert state == sorted(filter(is_dem_state, y.files))
+        for key in state:
+            np.testing.assert_array_equal(x[key], y[key], err_msg=key)
 
 
 def test_momentum_of_fe_dem_and_impulse_in_transit_is_conserved_to_round_off(one_rank):
-    _, s = one_rank
+    _, s, _ = one_rank
     p0 = s["momentum_dem_z"][0]
     assert p0 > 0 and s["momentum_fe_z"][0] == 0.0
     # the grains really hit the plate and hand it a good part of their momentum
@@ -73,11 +95,30 @@ def test_momentum_of_fe_dem_and_impulse_in_transit_is_conserved_to_round_off(one
 
 
 @pytest.mark.parametrize("ranks", [2, 3])
-def test_more_ranks_give_the_one_rank_result_and_conserve_momentum(one_rank, tmp_path, ranks):
-    """FE and DEM both spread over the ranks: the same history, the same closed books."""
-    case, s1 = one_rank
+def test_more_ranks_with_the_fe_on_each_give_the_one_rank_run_bit_for_bit(one_rank, tmp_path, ranks):
+    """The DEM spread over the ranks, the FE replicated (the default): FE and DEM states, the
+    interface force and motion are the 1-rank run's to the last bit; the books close."""
+    case, s1, out1 = one_rank
     s2, out = run(case, tmp_path / f"ranks{ranks}", mpi=ranks)
-    assert f"FE and DEM on {ranks} MPI ranks" in out
+    assert f"DEM on {ranks} MPI ranks, FE on each (replicated)" in out
+    assert_same_state(out1, tmp_path / f"ranks{ranks}")
+    assert not list((tmp_path / f"ranks{ranks}").glob("checkpoint.fe.*of[2-9].npz"))  # one FE file, rank 0's
+    for key in ("interface_force_z", "interface_displacement_z", "momentum_fe_z"):
+        np.testing.assert_array_equal(s2[key], s1[key], err_msg=key)
+    p0 = s2["momentum_dem_z"][0]
+    for axis in "xyz":
+        drift = np.abs(s2[f"momentum_total_{axis}"] - s2[f"momentum_total_{axis}"][0])
+        assert drift.max() < 1e-12 * p0, axis
+
+
+def test_more_ranks_with_the_fe_partitioned_give_the_one_rank_result_and_conserve_momentum(one_rank, tmp_path):
+    """FE and DEM both spread over the ranks (``coupling.fe_partition = "distributed"``): the
+    same history to summation-order round-off (the FE's sums follow its partition), the
+    same closed books."""
+    case, s1, _ = one_rank
+    ranks = 2
+    s2, out = run(case, tmp_path / "distributed", "--set", 'coupling.fe_partition="distributed"', mpi=ranks)
+    assert f"DEM on {ranks} MPI ranks, FE partitioned over them" in out
     for key in ("momentum_fe_z", "momentum_dem_z", "interface_displacement_z"):
         # agreement to the CSV's 10 significant digits, up to summation-order round-off
         np.testing.assert_allclose(s2[key], s1[key], rtol=1e-8, atol=1e-9 * np.abs(s1[key]).max(), err_msg=key)
@@ -87,14 +128,19 @@ def test_more_ranks_give_the_one_rank_result_and_conserve_momentum(one_rank, tmp
         assert drift.max() < 1e-12 * p0, axis
 
 
-def test_a_two_rank_checkpoint_resumes_on_one_rank(one_rank, tmp_path):
-    """Half the run on 2 ranks, the rest on 1 (the DEM from its rank-count-free checkpoint, the
-    FE nodes found by their mesh-input index): the 1-rank history to the CSV's 10 digits."""
-    case, s1 = one_rank
+@pytest.mark.parametrize("fe_partition", ["replicated", "distributed"])
+def test_a_two_rank_checkpoint_resumes_on_one_rank(one_rank, tmp_path, fe_partition):
+    """Half the run on 2 ranks, the rest on 1 (the DEM from its rank-count-free checkpoint).
+    With the FE replicated its checkpoint is the 1-rank one: the 1-rank run to the last bit;
+    partitioned, the FE nodes are found by their mesh-input index: the 1-rank history to the
+    CSV's 10 digits."""
+    case, s1, out1 = one_rank
     out = tmp_path / "split"
-    run(case, out, "--set", "time.duration=0.003", mpi=2)
+    run(case, out, "--set", "time.duration=0.003", "--set", f'coupling.fe_partition="{fe_partition}"', mpi=2)
     s, stdout = run(case, out, "--resume")
     assert "resumed at FE step" in stdout
+    if fe_partition == "replicated":
+        assert_same_state(out1, out)
     for key in ("momentum_fe_z", "momentum_dem_z", "interface_displacement_z"):
         np.testing.assert_allclose(s[key], s1[key], rtol=1e-8, atol=1e-9 * np.abs(s1[key]).max(), err_msg=key)
 
