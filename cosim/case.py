@@ -407,6 +407,10 @@ class SoilSection(_Section):
     damping: float = Field(
         default=0.5, ge=0, lt=1,
         description="local non-viscous damping of the FE soil (quasi-static, as the grains' [dem] one) [-]")
+    fe_partition: Literal["replicated", "distributed"] = Field(
+        default="replicated",
+        description="under mpirun, as coupling.fe_partition: 'replicated', every rank steps the whole FE soil "
+                    "(the run bit-identical to one rank's); 'distributed', the FE soil partitioned over the ranks")
 
 
 class ZoneSection(_Section):

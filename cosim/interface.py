@@ -2,12 +2,14 @@
 triangle facet mesh whose vertices are the FE nodes at X + u, and the particle
 impulse on those vertices handed back to the FE nodes as forces.
 
-The FE mesh is partitioned over all MPI ranks, and so is the DEM (every rank holds
-the whole interface facet mesh, as it holds every wall: de_domain.distributed sums
-the vertex forces over the ranks, so every rank has the same impulses). Each
-interface node is owned by exactly one rank (DOLFINx's index map): its position and
-velocity are gathered from that rank by all, and its force is set there only, so
-every impulse the particles give the facets reaches the FE exactly once.
+The DEM is partitioned over all MPI ranks (every rank holds the whole interface facet
+mesh, as it holds every wall: de_domain.distributed sums the vertex forces over the
+ranks, so every rank has the same impulses), and so may be the FE mesh (the solid's
+communicator: all ranks, or this rank alone for an FE replicated on every rank). Each
+interface node is owned by exactly one rank of the solid's communicator (DOLFINx's index
+map): its position and velocity are gathered from that rank by all, and its force is set
+there only, so every impulse the particles give the facets reaches the FE exactly once
+(a replicated FE: every rank owns every node, and gathers nothing).
 
 Optional smoothing of the interface force in time (``smoothing_time`` τ > 0): the impulse
 I of a window joins an impulse held back H, and the FE receives the part

@@ -74,11 +74,20 @@ def writes_fe_files(solid):
     return solid.comm.size == mpi_comm().size or is_root()
 
 
-def fe_communicator(case):
-    """The FE's communicator: all ranks (``coupling.fe_partition = "distributed"``), or this
-    rank alone (``"replicated"``: every rank builds and steps the whole mesh)."""
+def fe_communicator(fe_partition):
+    """The FE's communicator: all ranks (``fe_partition = "distributed"``), or this rank alone
+    (``"replicated"``: every rank builds and steps the whole mesh)."""
     from mpi4py import MPI
-    return mpi_comm() if case.coupling.fe_partition == "distributed" else MPI.COMM_SELF
+    return mpi_comm() if fe_partition == "distributed" else MPI.COMM_SELF
+
+
+def fe_layout(solid):
+    """How the FE lies on the ranks, for the run's first line ("" on one rank)."""
+    ranks = mpi_comm().size
+    if ranks == 1:
+        return ""
+    return f", DEM on {ranks} MPI ranks, FE " + ("partitioned over them" if solid.comm.size == ranks
+                                                 else "on each (replicated)")
 
 
 def check_replicas(solid):
@@ -106,7 +115,7 @@ def prepare(case, case_path, out_dir, resume):
     if resume and comm.allgather(dem_checkpoint.exists()).count(False):
         raise CaseError(case_path, "--resume", str(dem_checkpoint),
                         "no coupled checkpoint in the output folder; run without --resume")
-    solid = fe_app.build_solid(case, case_path, fe_communicator(case))
+    solid = fe_app.build_solid(case, case_path, fe_communicator(case.coupling.fe_partition))
     check_replicas(solid)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
     interface = Interface(solid, case.coupling.interface, material, case.coupling.smoothing_time)
@@ -177,11 +186,8 @@ def run(prepared):
     total = case.time.steps or int(math.ceil(case.time.duration / fe_dt))
     interval = case.output.interval or total * fe_dt / 20
     every = max(1, int(round(interval / fe_dt)))
-    ranks = mpi_comm().size
-    layout = "" if ranks == 1 else f", DEM on {ranks} MPI ranks, FE " + \
-        ("partitioned over them" if solid.comm.size == ranks else "on each (replicated)")
     say(f"[{case.case.name}] FE dt = {fe_dt:.3e} s, DEM dt = {dem_dt:.3e} s ({n_sub} DEM steps per FE step), "
-        f"{total} FE steps, output every {every}{layout}")
+        f"{total} FE steps, output every {every}{fe_layout(solid)}")
 
     # on resume, the rows from the checkpoint's instant on are written again (that instant's
     # only if it is an output step, as in an uninterrupted run)

@@ -157,7 +157,9 @@ def soil_mesh(case, case_path):
     any computation; a block gmsh cannot mesh is a CaseError on every rank."""
     from fe_domain.mesh import MeshError, load_mesh
     try:
-        return load_mesh("trench.geo", case.soil.mesh_size, mpi_comm(), Geometry.of(case).mesh_parameters(case.soil))
+        from cosim.apps.coupled import fe_communicator
+        return load_mesh("trench.geo", case.soil.mesh_size, fe_communicator(case.soil.fe_partition),
+                         Geometry.of(case).mesh_parameters(case.soil))
     except MeshError as exc:
         raise CaseError(case_path, "soil.mesh_size", case.soil.mesh_size,
                         f"gmsh could not mesh the soil block with its trench (meshes/trench.geo): {exc}") from None
@@ -295,6 +297,7 @@ def soil_density(case, radii, volume):
 def build_soil(case, geometry, interface_material, density, mesh=None):
     """The FE soil block with its trench (``mesh``, or meshes/trench.geo meshed here), of
     ``density`` (kg/m³), and the interface on the trench's faces; collective."""
+    from cosim.apps.coupled import check_replicas, fe_communicator
     from cosim.interface import Interface
     from fe_domain.build import build_solid
     from fe_domain.explicit import stable_alpha_tau
@@ -309,12 +312,15 @@ def build_soil(case, geometry, interface_material, density, mesh=None):
                         damping={"type": "local", "alpha": soil.damping} if soil.damping > 0 else None,
                         formulation="mixed", alpha_tau=stable_alpha_tau(soil.nu),
                         safety_factor=case.time.safety_factor,
-                        geometry_parameters=geometry.mesh_parameters(soil), comm=mpi_comm())
+                        geometry_parameters=geometry.mesh_parameters(soil),
+                        comm=fe_communicator(soil.fe_partition))
+    check_replicas(solid)
     return solid, Interface(solid, ["zone"], interface_material)
 
 
 # --------------------------------------------------------------------------- run
 def run(prepared):
+    from cosim.apps import coupled as coupled_app
     case = prepared.case
     out_dir = Path(prepared.out_dir) / case.footing.model
     if is_root():
@@ -339,8 +345,8 @@ def run(prepared):
         say(f"[{name}] {len(grains[1])} grains, DEM dt = {model.engine.dt:.3e} s"
             + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
                f"{n_cells} tetrahedra, {len(model.interface.facets.triangles)} interface facets"
-               if model.solid is not None else "")
-            + (f", on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else ""))
+               + coupled_app.fe_layout(model.solid) if model.solid is not None else
+               (f", on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else "")))
         t0 = time.perf_counter()
         rest = come_to_rest(case, model, out_dir, name)
         clock["rest_s"] = time.perf_counter() - t0
@@ -364,7 +370,7 @@ def run(prepared):
 
 
 def _cells(solid):
-    return mpi_comm().allreduce(solid.mesh.topology.index_map(3).size_local)
+    return solid.comm.allreduce(solid.mesh.topology.index_map(3).size_local)
 
 
 def _specimen(case, built, out_dir, name):
@@ -446,6 +452,7 @@ def load(case, model, out_dir, name, state, resume=False):
     """Push the footing down at footing.velocity to the final settlement; series.csv rows;
     a checkpoint every output.checkpoint_interval (after a row), from which ``resume``
     continues; returns the series as a dict of arrays (rank 0) or None."""
+    from cosim.apps import coupled as coupled_app
     from cosim.lab.shear_report import read_series
     from de_domain.io import write_frame
     from fe_domain.output import FieldWriter
@@ -481,7 +488,7 @@ def load(case, model, out_dir, name, state, resume=False):
     rows = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     fields = None
-    if model.solid is not None:
+    if model.solid is not None and coupled_app.writes_fe_files(model.solid):
         stem = f"fields_from_step{model.solid.step_count}" if resume else "fields"
         fields = FieldWriter(model.solid, out_dir / stem, extra_fields=[model.interface.traction_field])
     progress = ProgressLine(name, ft.rows, case.output.progress_interval, first_step=first_row - 1)
@@ -579,11 +586,11 @@ def resumed_model(case, case_path, out_dir, built, state):
 
 def fe_nodes(solid):
     """(coordinates, displacement) of every FE node, in mesh-input order, on rank 0 (None on
-    the others); collective."""
+    the others); collective over the FE's ranks."""
     owned = slice(0, solid.n_owned_nodes)
     rows = np.hstack([solid.input_node_index[owned, None].astype(np.float64), solid.node_coordinates[owned],
                       solid.displacement[owned]])
-    parts = mpi_comm().gather(rows, root=0)
+    parts = solid.comm.gather(rows, root=0)
     if not is_root():
         return None, None
     rows = np.concatenate(parts)
