@@ -144,18 +144,17 @@ def _max_displacement(solver):
 
 
 def restore_checkpoint(solver, case_path, out_dir, stem):
-    """Restore ``solver`` from the FE checkpoint ``<stem>.rank<r>of<n>.npz`` files in ``out_dir``
-    and return the state it used (with any extra arrays); collective. This rank's own file
-    when every rank's fits its partition (bit-identical continuation); otherwise the newest
-    complete set of any rank count, each node found by its mesh-input index (DOLFINx may
-    partition the same mesh differently from run to run)."""
+    """Restore ``solver`` from the newest complete set of FE checkpoint files
+    ``<stem>.rank<r>of<n>.npz`` in ``out_dir`` and return the state it used (with any extra
+    arrays); collective. This rank's own file when the newest set is of this rank count and
+    every rank's file fits its partition (bit-identical continuation); otherwise each node's
+    values from the rank of that set that owned it, found by its mesh-input index (another
+    rank count, or DOLFINx partitioned the same mesh otherwise). The newest set, not this
+    rank count's: an output folder may hold an older set of this count, from before a run
+    with another rank count or FE layout."""
     import re
     comm = solver.comm
     own = Path(out_dir) / f"{stem}.rank{comm.rank}of{comm.size}.npz"
-    state = _read(own) if own.exists() else None
-    if comm.allreduce(state is not None and solver.fits(state), op=_mpi_land()):
-        solver.restore_state(state)
-        return state
     chosen = None
     if comm.rank == 0:
         found = {}
@@ -164,12 +163,18 @@ def restore_checkpoint(solver, case_path, out_dir, stem):
             if match:
                 found.setdefault(int(match.group(2)), {})[int(match.group(1))] = path
         complete = {n: files for n, files in found.items() if sorted(files) == list(range(n))}
-        if complete:
-            chosen = max(complete, key=lambda n: max(f.stat().st_mtime for f in complete[n].values()))
+        if complete:  # the newest; on a tie this rank count's
+            chosen = max(complete, key=lambda n: (max(f.stat().st_mtime for f in complete[n].values()),
+                                                  n == comm.size))
     chosen = comm.bcast(chosen, root=0)
     if chosen is None:
         raise CaseError(case_path, "--resume", str(own), "no complete set of FE checkpoint files in the output "
                                                           "folder; run without --resume")
+    if chosen == comm.size:
+        state = _read(own)
+        if comm.allreduce(solver.fits(state), op=_mpi_land()):
+            solver.restore_state(state)
+            return state
     states = [_read(Path(out_dir) / f"{stem}.rank{r}of{chosen}.npz") for r in range(chosen)]
     failure = None
     try:

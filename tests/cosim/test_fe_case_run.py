@@ -117,6 +117,32 @@ def test_a_checkpoint_resumes_on_another_rank_count_and_partition(tmp_path):
     np.testing.assert_allclose(resumed, one, rtol=1e-8, atol=1e-8 * np.abs(one).max())
 
 
+def test_a_resume_takes_the_newest_set_of_checkpoint_files(tmp_path):
+    """An output folder with an older 1-rank FE checkpoint and a newer set of 2 ranks (a run
+    with another rank count or FE layout since): a 1-rank resume continues from the newer set,
+    every node from the rank that owned it, not from its own stale file."""
+    from cosim.apps import fe as fe_app
+    from cosim.case import load_case
+    path = block_case(tmp_path)
+    case, _ = load_case(path)
+    solver = fe_app.build_solid(case, path)
+    out = tmp_path / "out"
+    out.mkdir()
+    older = solver.checkpoint_state()
+    np.savez(out / "checkpoint.rank0of1.npz", **older)
+    os.utime(out / "checkpoint.rank0of1.npz", (1.0e9, 1.0e9))
+    newer = {**older, "clock": np.array([0.5, 100.0, older["clock"][2]]),
+             "displacement": older["displacement"] + 1e-3 * np.arange(older["displacement"].size).reshape(-1, 3)}
+    half = solver.n_owned_nodes // 2
+    for rank, rows in enumerate((slice(0, half), slice(half, None))):
+        part = {k: v[rows] if k in ("displacement", "velocity", "pressure", "velocity_change", "input_node_index")
+                else v for k, v in newer.items() if k != "n_owned_nodes"}
+        np.savez(out / f"checkpoint.rank{rank}of2.npz", **part, n_owned_nodes=np.int64(len(part["input_node_index"])))
+    fe_app.restore_checkpoint(solver, path, out, "checkpoint")
+    assert solver.step_count == 100 and solver.time == 0.5
+    np.testing.assert_array_equal(solver.displacement, newer["displacement"])
+
+
 def test_resume_without_a_checkpoint_is_bad_input(tmp_path):
     res = subprocess.run([str(COSIM), "run", str(block_case(tmp_path)), "--out", str(tmp_path / "none"), "--resume"],
                          capture_output=True, text=True, timeout=300, env=ENV, cwd=ROOT)
