@@ -201,10 +201,11 @@ class CoupledStepper:
         self.window_impulse = np.zeros(3)
         self.fe_steps_compiled = 0        # FE steps done in compiled calls ...
         self.windows_finished = 0         # ... of which windows stopped for a rebuild, finished from Python
-        if local_fe:
-            self._first_row = rows[0].start if rows else 0
-            self._vertex_node = np.empty(len(interface.facets.vertices), np.int64)  # FE on this rank: every
-            self._vertex_node[interface.owned_vertices] = interface.owned_nodes    # node owned
+        if self.compiled:
+            self._first_row = rows[0].start
+        if local_fe:  # every node owned
+            self._vertex_node = np.empty(len(interface.facets.vertices), np.int64)
+            self._vertex_node[interface.owned_vertices] = interface.owned_nodes
 
     def run(self, count, step_by_step):
         """``count`` FE steps; ``step_by_step(solid, engine, interface, subcycles)`` is one FE step
@@ -252,6 +253,7 @@ class CoupledStepper:
             dem_app.advance(engine, self.subcycles)
             interface.receive_forces(solid.dt)
             self.window_impulse += facets.vertex_impulse.sum(axis=0)
+        self.fe_steps_compiled += count
         return count
 
     def _compiled_steps(self, count, started):

@@ -85,3 +85,33 @@ def test_the_coupling_kernels_are_cached_under_a_digest_of_the_domains_sources_t
     digest = kernel_cache.DIGESTS[cosim_dir]
     assert digest == kernel_cache.source_digest(cosim_dir, domains) != kernel_cache.source_digest(cosim_dir)
     assert kernel_cache.cache_dir_name(digest) in compiled_coupling.coupled_steps._cache._cache_path
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("subcycles", [1, 3])
+def test_on_several_ranks_the_fe_steps_in_compiled_calls_are_the_step_by_step_ones_bit_for_bit(
+        tmp_path_factory, subcycles):
+    """Under mpirun (the DEM distributed, the FE replicated on every rank): each FE step with its
+    interface motion in one compiled call (``fe_step_and_motion``) gives the bits of the
+    step-by-step schedule, on every rank, through list rebuilds."""
+    from mpi4py import MPI
+    comm = MPI.COMM_WORLD
+    assert comm.size > 1
+    folder = tmp_path_factory.mktemp(f"several_{subcycles}") if comm.rank == 0 else None
+    folder = comm.bcast(folder, root=0)
+    runs = []
+    for fast in (True, False):
+        built = prepared(folder / f"{fast}_{comm.rank}", subcycles, 0.0)
+        stepper = CoupledStepper(built["solid"], built["engine"], built["interface"], built["subcycles"])
+        assert stepper.fe_compiled and not stepper.compiled
+        stepper.fe_compiled = fast
+        builds = built["engine"].neighbors.n_builds
+        for _ in range(FE_STEPS // 20):
+            stepper.run(20, coupled.coupled_step)
+        runs.append(({**state(built), "window_impulse": stepper.window_impulse}, stepper,
+                     built["engine"].neighbors.n_builds - builds))
+    (fast, stepper, builds), (reference, _, reference_builds) = runs
+    assert stepper.fe_steps_compiled > FE_STEPS // 2 and builds > 5 and builds == reference_builds
+    assert abs(fast["v"]).max() > 0.01  # the grains hit the plate
+    for key, value in reference.items():
+        assert np.array_equal(fast[key], value, equal_nan=True), key
