@@ -101,8 +101,8 @@ def check_replicas(solid):
     digest.update(solid.input_node_index.tobytes())
     digest.update(solid.mesh.geometry.dofmap.array.tobytes())
     if len(set(comm.allgather(digest.hexdigest()))) > 1:
-        raise RuntimeError("the replicated FE mesh differs between the ranks; set coupling.fe_partition = "
-                           "'distributed'")
+        raise RuntimeError("the replicated FE mesh differs between the ranks; set fe_partition = 'distributed' "
+                           "(coupling.fe_partition, or soil.fe_partition of a footing case)")
 
 
 def prepare(case, case_path, out_dir, resume):
