@@ -145,6 +145,7 @@ upper = 0.7
 """
 
 
+@pytest.mark.slow
 def test_calibrating_the_friction_of_a_miniature_shear_box(tmp_path):
     """The real evaluator on the 600-grain box of tests/shear (1.5 mm of shear, ~10 s a run):
     the target is the box's own φ_peak at μ = 0.25, measured first (off the search's centre, 0.4); the search finds a μ
@@ -187,17 +188,24 @@ def _triaxial_case(tmp_path):
 
 def test_calibrating_against_a_triaxial_target(tmp_path):
     """The same search on the miniature triaxial cell (6 % axial strain): the target is the
-    cell's own φ_peak at μ = 0.25."""
+    cell's own φ_peak at μ = 0.25; the search confirms it, and the written case reruns to it."""
     case = _triaxial_case(tmp_path)
     assert main(["run", str(case), "--out", str(tmp_path / "probe"), "--set", "dem.materials[0].friction=0.25"]) == 0
     target = json.loads((tmp_path / "probe" / "summary.json").read_text())["peak_friction_angle_deg"]
     path = tmp_path / "calibration.toml"
-    path.write_text(CALIBRATION.format(case="tx.toml", confirm="", target=target, tolerance=1.0))
+    path.write_text(CALIBRATION.format(case="tx.toml", confirm='confirm_case = "tx.toml"', target=target,
+                                      tolerance=1.0))
     out = tmp_path / "out"
     assert main(["calibrate", str(path), "--out", str(out)]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["status"] == "reached" and abs(report["targets"][0]["searched_case"] - target) <= 1.0
+    row = report["targets"][0]
+    assert report["status"] == "reached" and abs(row["searched_case"] - target) <= 1.0
+    assert row["confirm_case"] == pytest.approx(row["searched_case"])
     assert (out / "search" / "001" / "100kPa" / "triaxial.png").exists()
+    rerun = tmp_path / "rerun"
+    assert main(["run", str(out / "calibrated.toml"), "--out", str(rerun)]) == 0
+    again = json.loads((rerun / "summary.json").read_text())["peak_friction_angle_deg"]
+    assert again == row["confirm_case"]  # the calibrated file is the confirmed run, bit for bit
 
 
 def test_a_quantity_the_kind_does_not_measure_is_refused(tmp_path, capsys):
