@@ -19,8 +19,10 @@ instant with the same vertex positions.
 
 On several ranks the DEM steps from Python (its ghost exchange and facet force gather between
 the steps, :mod:`de_domain.distributed`). With the FE replicated on every rank
-(``coupling.fe_partition``), the FE step and the interface motion are one compiled call,
-:func:`fe_step_and_motion`, instead of ≈ 10 calls from Python (≈ 60 µs a step).
+(``coupling.fe_partition``), the last window's interface forces, the FE step and the interface
+motion are one compiled call, :func:`fe_step_and_motion`, instead of ≈ 10 calls from Python
+(≈ 60 µs a step), entered without typing or checking its arguments after the first FE step
+of a :meth:`CoupledStepper.run` (:attr:`numba_support.dispatch.CachedEntry.entry`).
 """
 from __future__ import annotations
 
@@ -95,29 +97,13 @@ def _send_motion(fe, interface, meshes):
 
 
 @njit(cache=True, error_model="numpy")
-def fe_step_and_motion(step, fe, node, coordinates, vertices, vertex_velocity, vertex_impulse):
-    """The FE step with the amplitudes of row ``step`` of ``fe`` (:class:`FeSteps`), then §5.3
-    step 2 on the interface facet mesh's own arrays, its vertex k at FE node ``node[k]``: at
-    X + u^n, moving with v^{n+½}, no impulse yet (the DEM's run books the vertices' jump)."""
-    velocity_update(fe.settings, fe.operators, fe.nodal, fe.load_amplitudes[step], fe.prescribed_amplitudes[step])
-    displacement_update(fe.settings, fe.operators, fe.nodal)
-    v = fe.nodal.velocity
-    for k in range(node.size):
-        a = node[k]
-        for d in range(3):
-            vertices[k, d] = _start_position(fe, coordinates, a, d)
-            vertex_velocity[k, d] = v[3 * a + d]
-            vertex_impulse[k, d] = 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _receive_forces(fe, interface, meshes):
+def _receive_forces(fe, interface, impulse):
     """§5.3 step 4: the interface force of the next FE step = released impulse / Δt_FE
     (with smoothing, released = β (held + window's impulse), the rest held); the window's
-    impulse added to ``window_impulse`` (summed over the vertices first, in their order)."""
+    impulse (rows ``interface.first_row`` … of ``impulse``) added to ``window_impulse``
+    (summed over the vertices first, in their order)."""
     window = fe.settings.dt
     external = fe.nodal.external_force
-    impulse = meshes.vertex_impulse
     total_impulse = np.zeros(3)
     for k in range(interface.node.size):
         a = interface.node[k]
@@ -134,6 +120,26 @@ def _receive_forces(fe, interface, meshes):
             external[3 * a + d] = interface.released[k, d] / window
     for d in range(3):
         interface.window_impulse[d] += total_impulse[d]
+
+
+@njit(cache=True, error_model="numpy")
+def fe_step_and_motion(step, fe, interface, vertices, vertex_velocity, vertex_impulse, window_done):
+    """With ``window_done``, first §5.3 step 4 for the last window (:func:`_receive_forces`, on
+    the impulse in the interface facet mesh's own arrays, ``interface.first_row`` = 0); then the
+    FE step with the amplitudes of row ``step`` of ``fe`` (:class:`FeSteps`) and §5.3 step 2 on
+    those arrays, vertex k at FE node ``interface.node[k]``: at X + u^n, moving with v^{n+½},
+    no impulse yet (the DEM's run books the vertices' jump)."""
+    if window_done:
+        _receive_forces(fe, interface, vertex_impulse)
+    velocity_update(fe.settings, fe.operators, fe.nodal, fe.load_amplitudes[step], fe.prescribed_amplitudes[step])
+    displacement_update(fe.settings, fe.operators, fe.nodal)
+    v = fe.nodal.velocity
+    for k in range(interface.node.size):
+        a = interface.node[k]
+        for d in range(3):
+            vertices[k, d] = _start_position(fe, interface.coordinates, a, d)
+            vertex_velocity[k, d] = v[3 * a + d]
+            vertex_impulse[k, d] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -167,7 +173,7 @@ def coupled_steps(n_fe, subcycles, fe, interface, dem, books, clock, status):
             status[OPEN_WINDOW] = 1
             status[OPEN_WINDOW_STEPS] = done
             return dem_steps
-        _receive_forces(fe, interface, meshes)
+        _receive_forces(fe, interface, meshes.vertex_impulse)
         status[DONE_FE_STEPS] = s + 1
         if due:
             status[REBUILD_DUE] = 1
@@ -244,17 +250,29 @@ class CoupledStepper:
         if solid.energy_interval > 0:
             count = min(count, solid.energy_interval - solid.step_count % solid.energy_interval)
         fe = self._amplitude_rows(count)
+        arrays = self._interface_arrays(0)  # the interface facet mesh's own rows
         facets = interface.facets
+        motion = (facets.vertices, facets.vertex_velocity, facets.vertex_impulse)
         from cosim.apps import dem as dem_app
         for step in range(count):
-            self._fe_step(step, fe, self._vertex_node, solid.node_coordinates, facets.vertices, facets.vertex_velocity,
-                          facets.vertex_impulse)
+            if step == 0:  # the last window's forces are received already
+                self._fe_step(step, fe, arrays, *motion, False)
+            else:  # the last window's forces first; the argument objects of the call before: its entry point
+                self._fe_step.entry(step, fe, arrays, *motion, True)
             solid.finish_compiled_steps(1)
             dem_app.advance(engine, self.subcycles)
-            interface.receive_forces(solid.dt)
-            self.window_impulse += facets.vertex_impulse.sum(axis=0)
+        interface.receive_forces(solid.dt)  # the last window's (then an output may read them)
+        self.window_impulse += facets.vertex_impulse.sum(axis=0)
         self.fe_steps_compiled += count
         return count
+
+    def _interface_arrays(self, first_row):
+        """:class:`InterfaceArrays` over the interface's arrays, its vertex 0 at row ``first_row``
+        of the facet arrays the kernels get."""
+        solid, interface = self.solid, self.interface
+        return InterfaceArrays(self._vertex_node, solid.node_coordinates, first_row, interface.held,
+                               interface.held_before, interface.released, interface.smoothing_time > 0.0,
+                               interface.release_fraction(solid.dt), self._jump, self.window_impulse)
 
     def _compiled_steps(self, count, started):
         """Up to ``count`` FE steps in one :func:`coupled_steps` call (fewer when the lists
@@ -266,14 +284,11 @@ class CoupledStepper:
             count = min(count, solid.energy_interval - solid.step_count % solid.energy_interval)
         fe = self._amplitude_rows(count)
         dem, books, clock = started
-        jump = self._jump
-        jump[0] = engine.boundary_jump_work
-        arrays = InterfaceArrays(self._vertex_node, solid.node_coordinates, self._first_row, interface.held,
-                                 interface.held_before, interface.released, interface.smoothing_time > 0.0,
-                                 interface.release_fraction(solid.dt), jump, self.window_impulse)
+        self._jump[0] = engine.boundary_jump_work
+        arrays = self._interface_arrays(self._first_row)
         status = self._status
         dem_steps = self._kernel(count, n_sub, fe, arrays, dem, books, clock, status)
-        engine.end_external_run(dem_steps, jump[0])
+        engine.end_external_run(dem_steps, self._jump[0])
         fe_steps = int(status[DONE_FE_STEPS] + status[OPEN_WINDOW])
         solid.finish_compiled_steps(fe_steps)
         self.fe_steps_compiled += fe_steps

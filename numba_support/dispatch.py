@@ -50,6 +50,13 @@ class CachedEntry:
         self._arguments = None  # kept alive, so that no new array can reuse an id in the key
         self._entry = None
 
+    @property
+    def entry(self):
+        """The machine-code entry point of the last call: ``entry(*args)`` with arguments of that
+        call's types and array objects is that call again, without even the key's check (for a
+        loop whose arguments are the same objects from one iteration to the next)."""
+        return self._entry
+
     def __call__(self, *args):
         key = _argument_key(args)
         if key == self._key:

@@ -88,20 +88,21 @@ def test_the_coupling_kernels_are_cached_under_a_digest_of_the_domains_sources_t
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("subcycles", [1, 3])
+@pytest.mark.parametrize("subcycles, smoothing", [(1, 0.0), (3, 2e-4)])
 def test_on_several_ranks_the_fe_steps_in_compiled_calls_are_the_step_by_step_ones_bit_for_bit(
-        tmp_path_factory, subcycles):
-    """Under mpirun (the DEM distributed, the FE replicated on every rank): each FE step with its
-    interface motion in one compiled call (``fe_step_and_motion``) gives the bits of the
-    step-by-step schedule, on every rank, through list rebuilds."""
+        tmp_path_factory, subcycles, smoothing):
+    """Under mpirun (the DEM distributed, the FE replicated on every rank): each FE step with the
+    last window's interface forces (smoothed too) and its interface motion in one compiled call
+    (``fe_step_and_motion``) gives the bits of the step-by-step schedule, on every rank, through
+    list rebuilds."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
     assert comm.size > 1
-    folder = tmp_path_factory.mktemp(f"several_{subcycles}") if comm.rank == 0 else None
+    folder = tmp_path_factory.mktemp(f"several_{subcycles}_{smoothing}") if comm.rank == 0 else None
     folder = comm.bcast(folder, root=0)
     runs = []
     for fast in (True, False):
-        built = prepared(folder / f"{fast}_{comm.rank}", subcycles, 0.0)
+        built = prepared(folder / f"{fast}_{comm.rank}", subcycles, smoothing)
         stepper = CoupledStepper(built["solid"], built["engine"], built["interface"], built["subcycles"])
         assert stepper.fe_compiled and not stepper.compiled
         stepper.fe_compiled = fast
