@@ -86,9 +86,11 @@ bench-peers: setup
 	fi
 	$(PY) benchmarks/compare_peers.py
 
-# coupled FE step against the DEM window and the FE step alone (README "Coupling overhead")
+# coupled FE step against the DEM window and the FE step alone, and the DEM step's slowdown
+# when other bytes stream through the cache between its steps (README "Coupling overhead")
 bench-coupled: setup
 	$(PY) benchmarks/coupled_overhead.py
+	$(PY) benchmarks/cache_contention.py
 
 # DEM over MPI ranks (80k and 320k beds, 1/2 ranks, 1/2 threads; LIGGGHTS beside it when
 # `make bench-peers` has installed it): README "DEM under MPI".
