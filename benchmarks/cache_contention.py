@@ -21,20 +21,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 import time
 
-from coupled_overhead import FLAGSHIP, OUT, ROOT, case_overrides
+from coupled_overhead import FLAGSHIP, OUT, case_overrides, median, run_on_every_rank, run_worker
 
 REPEATS = 7
 WINDOWS = 200            # one-step DEM windows per timed block
 STREAM_MB = (0, 1, 2, 4, 8, 16)
-
-
-def _median(values):
-    return sorted(values)[len(values) // 2]
 
 
 def worker(out_json):
@@ -80,10 +73,10 @@ def worker(out_json):
             alone[key].append(elapsed(lambda key=key: stream_alone(streams[key])))
     if comm.rank:
         return
-    base = _median(after["0"]) - _median(alone["0"])
-    rows = [{"stream": key, "mb": sizes[key] / 1e6, "window_us": 1e6 * _median(after[key]),
-             "read_us": 1e6 * _median(alone[key]),
-             "slowdown": (_median(after[key]) - _median(alone[key])) / base} for key in keys]
+    base = median(after["0"]) - median(alone["0"])
+    rows = [{"stream": key, "mb": sizes[key] / 1e6, "window_us": 1e6 * median(after[key]),
+             "read_us": 1e6 * median(alone[key]),
+             "slowdown": (median(after[key]) - median(alone[key])) / base} for key in keys]
     with open(out_json, "w") as handle:
         json.dump({"ranks": comm.size, "grains": int(engine.domain.n_global if engine.domain else engine.particles.n),
                    "rows": rows}, handle)
@@ -95,27 +88,15 @@ def main():
     parser.add_argument("--worker", metavar="JSON", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        try:
-            worker(args.worker)
-        except BaseException:  # one rank failing ends all (no rank left waiting in a collective)
-            import traceback
-
-            from mpi4py import MPI
-            traceback.print_exc()
-            MPI.COMM_WORLD.Abort(1)
+        run_on_every_rank(worker, args.worker)
         return
     OUT.mkdir(parents=True, exist_ok=True)
     case_overrides("large", 1)  # make the 20,000 bed first, if it is missing
-    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
     print(f"{'ranks':>5s} {'read [MB]':>11s} | {'window after the read':>21s} {'read alone':>10s} | slowdown")
     results = []
     for ranks in args.ranks:
         out_json = OUT / f"cache_contention_{ranks}.json"
-        cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), sys.executable, __file__, "--worker", str(out_json)]
-        done = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
-        if done.returncode:
-            sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
+        run_worker(__file__, ranks, [out_json])
         result = json.loads(out_json.read_text())
         results.append(result)
         for row in result["rows"]:

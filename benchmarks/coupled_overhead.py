@@ -70,9 +70,34 @@ def case_overrides(case, subcycles, fe_partition="replicated"):
     return overrides
 
 
-def _median(values):
+def median(values):
+    """The middle value (the upper one of an even count)."""
     values = sorted(values)
     return values[len(values) // 2]
+
+
+def run_worker(script, ranks, worker_args):
+    """``mpirun -n ranks python script --worker worker_args`` with 1 Numba thread per rank;
+    exits with the worker's output if it fails."""
+    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), sys.executable, str(script), "--worker",
+           *map(str, worker_args)]
+    done = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    if done.returncode:
+        sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
+
+
+def run_on_every_rank(work, *args):
+    """``work(*args)`` in a worker; one rank failing ends all (none left waiting in a collective)."""
+    try:
+        work(*args)
+    except BaseException:
+        import traceback
+
+        from mpi4py import MPI
+        traceback.print_exc()
+        MPI.COMM_WORLD.Abort(1)
 
 
 def worker(case, subcycles, fe_partition, out_json):
@@ -144,7 +169,7 @@ def worker(case, subcycles, fe_partition, out_json):
     split /= block
     if comm.rank:
         return
-    med = {k: _median(v) for k, v in times.items()}
+    med = {k: median(v) for k, v in times.items()}
     n_grains = engine.domain.n_global if engine.domain is not None else engine.particles.n
     row = {"case": case, "grains": int(n_grains), "facets": int(len(interface.facets.triangles)),
            "fe_cells": int(solid.mesh.topology.index_map(3).size_global), "subcycles": n_sub, "ranks": comm.size,
@@ -173,20 +198,11 @@ def main():
     args = parser.parse_args()
     if args.worker:
         case, subcycles, fe_partition, out_json = args.worker
-        try:
-            worker(case, int(subcycles), fe_partition, out_json)
-        except BaseException:  # one rank failing ends all (no rank left waiting in a collective)
-            import traceback
-
-            from mpi4py import MPI
-            traceback.print_exc()
-            MPI.COMM_WORLD.Abort(1)
+        run_on_every_rank(worker, case, int(subcycles), fe_partition, out_json)
         return
     OUT.mkdir(parents=True, exist_ok=True)
     if "large" in args.cases:
         case_overrides("large", 1)  # make the 20,000 bed first, if it is missing
-    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
     rows = []
     print(f"{'case':9s} {'grains':>7s} {'facets':>6s} {'sub':>4s} {'ranks':>5s} {'FE':>11s} | {'coupled':>9s} "
           f"{'DEM alone':>9s} "
@@ -196,12 +212,8 @@ def main():
         for subcycles in args.subcycles:
             for ranks, partition in [(r, p) for r in args.ranks for p in (args.fe_partition if r > 1 else ["-"])]:
                 out_json = OUT / f"coupled_overhead_{case}_{subcycles}_{ranks}_{partition}.json"
-                cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), sys.executable, __file__,
-                       "--worker", case, str(subcycles), "replicated" if partition == "-" else partition,
-                       str(out_json)]
-                done = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
-                if done.returncode:
-                    sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
+                run_worker(__file__, ranks,
+                           [case, subcycles, "replicated" if partition == "-" else partition, out_json])
                 row = json.loads(out_json.read_text())
                 rows.append(row)
                 s, b = row["split_us"], row["builds_per_1000_steps"]
