@@ -86,11 +86,13 @@ bench-peers: setup
 	fi
 	$(PY) benchmarks/compare_peers.py
 
-# coupled FE step against the DEM window and the FE step alone, and the DEM step's slowdown
-# when other bytes stream through the cache between its steps (README "Coupling overhead")
+# coupled FE step against the DEM window and the FE step alone, the DEM step's slowdown
+# when other bytes stream through the cache between its steps, and a 2-rank coupled step
+# split into kernels and the rest (README "Coupling overhead")
 bench-coupled: setup
 	$(PY) benchmarks/coupled_overhead.py
 	$(PY) benchmarks/cache_contention.py
+	$(PY) benchmarks/coupled_step_split.py
 
 # DEM over MPI ranks (80k and 320k beds, 1/2 ranks, 1/2 threads; LIGGGHTS beside it when
 # `make bench-peers` has installed it): README "DEM under MPI".
