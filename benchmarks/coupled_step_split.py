@@ -22,8 +22,9 @@ parts alone; this script splits both sides, per step, by wrapping the engine's k
 
 for ``coupled`` (:class:`cosim.compiled_coupling.CoupledStepper`, as ``cosim run`` steps) and
 ``DEM alone`` (``Engine.run`` over the same number of steps, the interface as fixed facets),
-blocks of STEPS steps interleaved, each first in turn, medians of REPEATS per rank; and the
-FE alone (``ExplicitSolid.run``) for the overhead ratio of ``coupled_overhead.py``.
+blocks of STEPS steps interleaved, each first in turn, medians of REPEATS per rank; the FE
+alone (``ExplicitSolid.run``) for the overhead ratio of ``coupled_overhead.py``; and both
+steps again without the timers, interleaved with the rest, for what the timers cost.
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ import time
 
 from coupled_overhead import FLAGSHIP, OUT, case_overrides, median, run_on_every_rank, run_worker
 
-REPEATS = 6
+REPEATS = 10
 STEPS = 200
 PARTS = ("dem_kernel", "fe_call", "exchange_facets")
 
@@ -87,10 +88,13 @@ def worker(case, out_json):
         raise SystemExit("coupled_step_split.py needs several ranks with the FE replicated (the compiled FE call)")
     stepper.run(20, coupled.coupled_step)  # warm up (compiles on the first run after an edit)
     timers = _Timers()
-    engine._advance_kernel = timers.wrap("dem_kernel", engine._advance_kernel)
-    stepper._fe_step = _TimedEntry(stepper._fe_step, timers, "fe_call")
-    engine.domain.exchange.exchange = timers.wrap("exchange_facets", engine.domain.exchange.exchange)
-    distributed.facet_vertex_forces = timers.wrap("exchange_facets", distributed.facet_vertex_forces)
+    exchange = engine.domain.exchange
+    plain = (engine._advance_kernel, stepper._fe_step, exchange.exchange, distributed.facet_vertex_forces)
+    timed = (timers.wrap("dem_kernel", plain[0]), _TimedEntry(plain[1], timers, "fe_call"),
+             timers.wrap("exchange_facets", plain[2]), timers.wrap("exchange_facets", plain[3]))
+
+    def instrument(callables):
+        engine._advance_kernel, stepper._fe_step, exchange.exchange, distributed.facet_vertex_forces = callables
 
     def coupled_block():
         stepper.run(STEPS, coupled.coupled_step)
@@ -102,10 +106,13 @@ def worker(case, out_json):
     def fe_block():
         solid.run(STEPS)
 
-    blocks = [("coupled", coupled_block), ("dem_alone", dem_block), ("fe_alone", fe_block)]
-    rows = {kind: [] for kind, _ in blocks}
+    # the same blocks with and without the timers: what the timers cost shows
+    blocks = [("coupled", coupled_block, timed), ("dem_alone", dem_block, timed), ("fe_alone", fe_block, plain),
+              ("coupled_plain", coupled_block, plain), ("dem_alone_plain", dem_block, plain)]
+    rows = {kind: [] for kind, _, _ in blocks}
     for repeat in range(REPEATS):
-        for kind, work in blocks[repeat % 3:] + blocks[:repeat % 3]:
+        for kind, work, callables in blocks[repeat % len(blocks):] + blocks[:repeat % len(blocks)]:
+            instrument(callables)
             timers.reset()
             comm.Barrier()
             start = time.perf_counter()
@@ -139,15 +146,18 @@ def main():
     result = json.loads(out_json.read_text())
     print(f"{args.case}, {args.ranks} ranks, 1 substep, us a step (medians of {REPEATS} blocks of {STEPS} steps)")
     print(f"{'rank':>4s} {'':10s} | {'step':>6s} = {'DEM kernel':>10s} + {'FE call':>7s} + "
-          f"{'exchange + facets':>17s} + {'other':>5s} | overhead")
+          f"{'exchange + facets':>17s} + {'other':>5s} | overhead                | without the timers: step, overhead")
     for rank, kinds in enumerate(result["per_rank"]):
         fe_alone = kinds["fe_alone"]["step"]
         for kind in ("coupled", "dem_alone"):
             r = {key: 1e6 * value for key, value in kinds[kind].items()}
             ratio = kinds["coupled"]["step"] / (kinds["dem_alone"]["step"] + fe_alone)
+            plain_ratio = kinds["coupled_plain"]["step"] / (kinds["dem_alone_plain"]["step"] + fe_alone)
+            overhead = f"{ratio:.2f} (FE alone {1e6 * fe_alone:.0f} us)" if kind == "coupled" else ""
             print(f"{rank:4d} {kind:10s} | {r['step']:6.0f} = {r['dem_kernel']:10.0f} + {r['fe_call']:7.0f} + "
-                  f"{r['exchange_facets']:17.0f} + {r['other']:5.0f} |"
-                  + (f" {ratio:.2f} (FE alone {1e6 * fe_alone:.0f} us)" if kind == "coupled" else ""), flush=True)
+                  f"{r['exchange_facets']:17.0f} + {r['other']:5.0f} | {overhead:22s} | "
+                  f"{1e6 * kinds[kind + '_plain']['step']:6.0f}" + (f" {plain_ratio:.2f}" if kind == "coupled" else ""),
+                  flush=True)
 
 
 if __name__ == "__main__":
