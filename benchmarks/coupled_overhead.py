@@ -7,7 +7,7 @@ Cases (``cosim`` coupled cases, built from ``runs/coupled_footing_on_sand.toml``
 
 * ``flagship``: the case itself, 3,000 grains, an interface of 108 triangles;
 * ``large``: the same elastic plate, 60 × 60 × 5 mm with 2 mm elements, on the W1 bed of
-  20,000 grains (``benchmarks/beds.py``, box 76 × 76 mm): an interface of ≈ 2,600 triangles.
+  20,000 grains (``benchmarks/beds.py``, box 76 × 76 mm): an interface of 2,892 triangles (1,507 vertices).
 
 each with 1 and 10 DEM substeps per FE step (``coupling.subcycles``), and on several ranks with
 the FE replicated on each (``coupling.fe_partition``, the default) or partitioned over them
