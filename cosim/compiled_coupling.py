@@ -73,9 +73,10 @@ class InterfaceArrays(NamedTuple):
 @njit(cache=True, error_model="numpy")
 def _start_position(fe, interface, k, a, d):
     """Coordinate d of interface vertex k, at FE node a, at the start of the window,
-    X + u^n = X + (u^{n+1} − Δt v^{n+½}). X is read in vertex order (``interface.reference``):
-    gathered by node from the FE's coordinates, which no FE step reads, it cost a cache miss a
-    vertex, ≈ 20 µs a step at 1,507 vertices (docs/performance.md)."""
+    X + u^n = X + (u^{n+1} − Δt v^{n+½}). X is read in vertex order (``interface.reference``, a
+    copy made once): gathering it by node from the FE's coordinates, which no FE step reads and
+    which are out of cache by then, cost a cache miss a vertex (≈ 20 µs a step at 1,507 vertices;
+    docs/performance.md)."""
     nodal = fe.nodal
     return interface.reference[k, d] + (nodal.displacement[3 * a + d] - fe.settings.dt * nodal.velocity[3 * a + d])
 
