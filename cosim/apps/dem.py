@@ -34,6 +34,8 @@ PROGRESS_CHUNK = 200  # steps between checks of the progress line and checkpoint
 MAX_STEPS = 10**9  # a longer run is a typo (a duration in ms written in s), not a plan
 OVERLAP_WARNING = 0.05  # initial overlaps above this fraction of the smaller radius are reported
 ENERGY_WARNING = 0.05  # an energy balance residual above this fraction of work + dissipation is reported
+#: ``series.csv``: these columns, then every term of ``Engine.energy()`` in its order (J; docs/reference/outputs.md)
+SERIES_COLUMNS = ("time", "step", "unbalanced_force_ratio", "coordination_number")
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -237,7 +239,7 @@ def _run_engine(case, engine, out_dir, resume):
     series = frames = None
     if root:
         series = CsvSeries(out_dir / "series.csv",
-                           ["time", "step", "unbalanced_force_ratio", "coordination_number", *energy_keys],
+                           [*SERIES_COLUMNS, *energy_keys],
                            resume_time=engine.time if resume else None)
         frames = PvdCollection(out_dir / "particles.pvd", engine.time if resume else None)
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=engine.step_count)

@@ -19,6 +19,14 @@ from cosim.errors import CaseError, RunFailed
 from cosim.outputs import CsvSeries, ProgressLine, is_root, mpi_comm, say, write_run_metadata
 
 PROGRESS_CHUNK = 50  # steps between checks of the progress line and checkpoint clock
+#: ``series.csv``: these columns, then ``<group>_x``, ``_y``, ``_z`` for each group of ``fe.reactions``
+SERIES_COLUMNS = ("time", "step", "max_displacement")
+REACTION_AXES = "xyz"
+
+
+def reaction_columns(groups):
+    """``series.csv``'s reaction columns: ``<group>_x``, ``_y``, ``_z`` for each group (N)."""
+    return [f"{n}_{c}" for n in groups for c in REACTION_AXES]
 
 
 def prepare(case, case_path, out_dir, resume):
@@ -94,8 +102,7 @@ def run(prepared):
     resume_time = solver.time if resume else None
     series = energies = None
     if is_root():
-        series = CsvSeries(out_dir / "series.csv", ["time", "step", "max_displacement",
-                                                    *[f"{n}_{c}" for n in reactions for c in "xyz"]], resume_time)
+        series = CsvSeries(out_dir / "series.csv", [*SERIES_COLUMNS, *reaction_columns(reactions)], resume_time)
         energies = CsvSeries(out_dir / "energies.csv", ENERGY_COLUMNS, resume_time)
     fields = FieldWriter(solver, out_dir / ("fields_from_step%d" % solver.step_count if resume else "fields"))
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=solver.step_count)
