@@ -270,24 +270,20 @@ def _info():
 
 
 def _schema():
-    from cosim.case import Case, _inner_model
     from cosim.outputs import say
+    from cosim.schema_doc import default_value, walk
 
-    def walk(model, prefix):
-        for name, field in model.model_fields.items():
-            inner = _inner_model(field.annotation)
-            key = f"{prefix}{name}"
-            if inner is not None:
-                is_list = "list" in str(field.annotation)
-                header = f"[[{key}]]" if is_list else f"[{key}]"
-                say(header + (f"  {field.description}" if field.description else ""))
-                walk(inner, key + ".")
-            else:
-                default = "required" if field.is_required() else f"default {field.default!r}"
-                ann = field.annotation
-                ann = ann.__name__ if isinstance(ann, type) else str(ann).replace("typing.", "")
-                say(f"  {key:32s} {ann:38s} {default:22s} {field.description or ''}")
-    walk(Case, "")
+    for entry in walk():
+        field = entry.field
+        if entry.model is not None:
+            header = f"[[{entry.key}]]" if entry.is_list else f"[{entry.key}]"
+            say(header + (f"  {field.description}" if field.description else ""))
+        else:
+            default = default_value(field)
+            default = "required" if default is ... else f"default {default!r}"
+            ann = field.annotation
+            ann = ann.__name__ if isinstance(ann, type) else str(ann).replace("typing.", "")
+            say(f"  {entry.key:32s} {ann:38s} {default:22s} {field.description or ''}")
     return 0
 
 
