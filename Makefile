@@ -1,5 +1,6 @@
 # Two commands from nothing:  `make demo`  and  `make test`.
 # `make setup` (run by both) is idempotent: apt packages, .venv, editable install.
+# `make docs` builds the manual (Sphinx + MyST + furo, from Debian): docs/_build/html/index.html.
 
 SHELL        := /bin/bash
 VENV         := .venv
@@ -7,7 +8,8 @@ PY           := $(VENV)/bin/python
 SYSTEM_PY    := /usr/bin/python3
 APT_PACKAGES := python3-dolfinx python3-numba python3-mpi4py python3-petsc4py \
                 python3-gmsh python3-meshio python3-h5py python3-matplotlib \
-                python3-scipy python3-pytest python3-venv python3-pip openmpi-bin make
+                python3-scipy python3-pytest python3-venv python3-pip openmpi-bin make \
+                python3-sphinx python3-myst-parser furo
 PIP_EXTRAS   := pydantic>=2,<3 tomli-w>=1.0 ruff>=0.17,<0.18
 STAMP        := $(VENV)/.setup-done
 # OpenMPI refuses to run as root and to oversubscribe 2 cores unless told; these
@@ -18,7 +20,8 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN       := mpirun --oversubscribe --bind-to none  # unbound: Numba threads may use both cores
 DEMO_CASE    ?= runs/footing_small.toml
 
-.PHONY: setup demo demo-plate demo-shear lab-series test test-slow bench bench-peers bench-mpi bench-coupled clean
+.PHONY: setup demo demo-plate demo-shear lab-series docs docs-reference test test-slow bench bench-peers bench-mpi \
+        bench-coupled clean
 
 setup: apt-packages $(STAMP)
 
@@ -58,7 +61,16 @@ demo-shear: setup
 lab-series: setup
 	$(VENV)/bin/cosim series runs/direct_shear_small.toml runs/direct_shear_small_loose.toml --out runs/out/direct_shear_series_small
 
-test: setup
+# the manual: docs/_build/html/index.html (any Sphinx warning is an error). It builds the
+# committed docs/reference/case-file.md as it is; `make docs-reference` regenerates that
+# page from the schema in cosim/case.py (tests/docs checks it is up to date).
+docs: setup
+	$(PY) -m sphinx -W --keep-going -b html docs docs/_build/html
+
+docs-reference: setup
+	$(PY) -m cosim.schema_doc docs/reference/case-file.md
+
+test: setup docs
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -m "not slow and not mpi" -q --color=no
 	timeout 1200 $(MPIRUN) -n 2 $(PY) -m pytest -m "mpi and not slow" -q --color=no -p no:cacheprovider
@@ -100,4 +112,4 @@ bench-mpi: setup
 	$(PY) benchmarks/dem_scaling.py
 
 clean:
-	rm -rf $(VENV) runs/out .pytest_cache
+	rm -rf $(VENV) runs/out .pytest_cache docs/_build
