@@ -19,7 +19,7 @@ FE + DEM + impulse in transit stays exactly conserved (docs/design.md §5.4); at
 load the FE receives, on average, the whole impulse.
 
 The interface traction for ParaView is the nodal force over the node's lumped area,
-t_a = f_a / A_a with A_a = Σ_{T ∋ a} |T| / 3 (= ∫ φ_a dA for linear triangles, on the
+t_a = f_a / A_a with ``A_a = Σ_{T ∋ a} |T| / 3`` (= ∫ φ_a dA for linear triangles, on the
 reference surface).
 """
 from __future__ import annotations
@@ -167,7 +167,7 @@ class Interface:
 
 
 def nodal_areas(vertices, triangles):
-    """Lumped area of each vertex, A_a = Σ_{T ∋ a} |T| / 3 (m²)."""
+    """Lumped area of each vertex, ``A_a = Σ_{T ∋ a} |T| / 3`` (m²)."""
     a, b, c = (vertices[triangles[:, k]] for k in range(3))
     third = np.linalg.norm(np.cross(b - a, c - a), axis=1) / 6.0
     area = np.zeros(len(vertices))

@@ -4,6 +4,7 @@ it makes sense, a region.
 
 Regions: :class:`BoxRegion` (axis-aligned) and :class:`SphereRegion`. Solid volume
 in a region counts the part of every sphere inside it:
+
   * sphere region: exact lens volume of two intersecting spheres;
   * box region: spheres wholly inside/outside exactly; spheres cut by the box
     faces by a 32 × 32 Gauss–Legendre quadrature of the disc ∩ rectangle area
@@ -80,7 +81,7 @@ def _owned_contacts(engine, c):
 
 
 def unbalanced_force_ratio(engine):
-    """mean |resultant force| / mean |contact force| (YADE ``unbalancedForce``).
+    """``mean |resultant force| / mean |contact force|`` (YADE ``unbalancedForce``).
 
     The resultant is contacts + gravity of the last step over free particles; 0/0
     (no contacts) returns 1.0 ("not in equilibrium"). A distributed engine takes the

@@ -45,7 +45,7 @@ class Material:
 
     density [kg/m³], young E [Pa], poisson ν, friction μ (Coulomb coefficient),
     restitution e ∈ (0, 1], stiffness_ratio κ = k_n/k_t, rolling_stiffness β_r
-    (k_r = β_r k_t r̄²), rolling_friction η_r (|M_r| ≤ η_r f_n r̄).
+    (k_r = β_r k_t r̄²), rolling_friction η_r (``|M_r| ≤ η_r f_n r̄``).
     """
 
     density: float = 2650.0

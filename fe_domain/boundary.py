@@ -80,7 +80,7 @@ class MassProportionalDamping:
 
 @dataclass(frozen=True)
 class LocalNonViscousDamping:
-    """Cundall local damping (docs/design.md §2.13 and §4.7, per component): f_damp = α |F| sign(v^{n−½}).
+    """Cundall local damping (docs/design.md §2.13 and §4.7, per component): ``f_damp = α |F| sign(v^{n−½})``.
 
     F is the unbalanced nodal force f_ext − f_int; 0 ≤ α < 1 (0.7 is usual).
     """

@@ -1,7 +1,7 @@
 """Build an ExplicitSolid from plain parameters (numbers, strings, lists, dicts).
 
 This is the entry point for a case loader: it takes already-parsed values (e.g. a
-TOML table) and returns the solver; it reads no files besides the mesh.  Tables:
+TOML table) and returns the solver; it reads no files besides the mesh.  Tables::
 
     material   {"E": 1e7, "nu": 0.3, "rho": 1800}  or  {"<cell group>": {...}, ...}
     boundary_conditions  [{"type": "fixed", "boundary": "bottom", "components": [2]},

@@ -3,7 +3,7 @@
 A geometry is a gmsh ``.geo`` source in ``meshes/`` (or an already meshed ``.msh``
 file).  Rank 0 of the communicator builds or reads the gmsh model, generates the
 3D tetrahedral mesh with the requested size, and ``dolfinx.io.gmshio.model_to_mesh``
-distributes it (docs/design.md §1.2: meshes/*.geo → gmsh → dolfinx mesh + facet tags),
+distributes it (docs/design.md §1.2: ``meshes/*.geo`` → gmsh → dolfinx mesh + facet tags),
 cut into parts by :func:`reproducible_partitioner`: DOLFINx's default (PT-SCOTCH) cut the
 same tiny footing mesh two different ways over 12 runs on 2 ranks (2026-12-03), and a
 different cut changes the order of the FE sums, i.e. the bits of a run and of its resume;

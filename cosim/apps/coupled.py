@@ -6,10 +6,12 @@ FE messages, and the whole run bit-identical to one rank's), or partitioned over
 (``"distributed"``, for FE meshes whose step costs more than a rank's share of the DEM step).
 
 Per FE step (the coupling schedule, docs/design.md §5.3):
+
   1. the FE advances v^{n+½}, u^{n+1} with the interface force of the last window;
   2. the interface vertices start at X + u^n and move with v^{n+½};
   3. the DEM runs ``subcycles`` steps against them, accumulating the impulse per FE node;
   4. interface force for the next FE step = impulse / Δt_FE.
+
 Δt_FE = subcycles × Δt_DE, both within their stability limits.
 
 Outputs: ``series.csv`` (interface force, mean interface displacement, linear momentum

@@ -39,7 +39,7 @@ Measured quantities (``series.csv``):
     of the plate's contacts (N/m), which the stiffness servo divides by.
 
 Servo laws (``direct_shear.servo``): ``stiffness`` (above; default) or ``fixed_gain``, the
-thesis's YADE script's v = gain (σ − σ_n)/σ_n with |v| ≤ ``servo_max_velocity``
+thesis's YADE script's v = gain (σ − σ_n)/σ_n with ``|v| ≤ servo_max_velocity``
 (``cosim.lab.shear_box.fixed_gain_velocity``). The summary names the law, the gain used and
 the mean plate contact stiffness.
 """

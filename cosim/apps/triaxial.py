@@ -369,7 +369,7 @@ def summarize(data, residual_fraction=0.2):
 
 
 def servo_errors(data, target):
-    """|σ₃ − target|/target over the CSV rows (σ₃ the mean of the two lateral walls), and the
+    """``|σ₃ − target|/target`` over the CSV rows (σ₃ the mean of the two lateral walls), and the
     largest error of one wall alone."""
     sigma_3 = np.abs(data["sigma_3"] / target - 1.0)
     walls = np.maximum(np.abs(data["sigma_x"] / target - 1.0), np.abs(data["sigma_y"] / target - 1.0))

@@ -10,7 +10,7 @@ four parameters of the sand material with bounds. The search, step by step:
    evaluation (as in ``cosim series``): only the test's micro-parameters change.
 2. **An evaluation** is one run of the case per distinct target stress with one parameter set.
    Its misfit is Σ ((achieved − value) / tolerance)²; the targets are reached when every
-   |achieved − value| ≤ tolerance.
+   ``|achieved − value| ≤ tolerance``.
 3. **Reachability.** The two corners of the bounds (all parameters at their lower, then at
    their upper bound) are evaluated first. φ, dilation and strength rise with μ, β_r and η_r
    and fall with k_n/k_t, so the corners span what the bounds can give. A target outside

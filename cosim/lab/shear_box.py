@@ -93,7 +93,7 @@ class ShearBoxGeometry:
 
 def servo_velocity(stress, target, area, stiffness, dt, gain, max_velocity):
     """Vertical velocity of a top plate (normal −z) that removes the fraction ``gain`` of
-    the stress error per step (PFC/YADE-style servo):
+    the stress error per step (PFC/YADE-style servo)::
 
         v_z = −gain · A (σ_target − σ) / (k Δt),  |v_z| ≤ v_max,
 
@@ -108,7 +108,7 @@ def servo_velocity(stress, target, area, stiffness, dt, gain, max_velocity):
 
 def fixed_gain_velocity(stress, target, gain, max_velocity):
     """Vertical velocity of a top plate (normal −z) proportional to the relative stress error,
-    as the servo of the thesis's YADE script (App. D, ``servoController``):
+    as the servo of the thesis's YADE script (App. D, ``servoController``)::
 
         v_z = −gain · (σ_target − σ) / σ_target,  |v_z| ≤ v_max  (positive: up).
     """
