@@ -21,7 +21,6 @@ version = release
 extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
-    "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
     "sphinx.ext.viewcode",
 ]
@@ -35,11 +34,11 @@ exclude_patterns = ["_build", "Thumbs.db", ".DS_Store"]
 myst_enable_extensions = ["dollarmath", "colon_fence"]
 myst_heading_anchors = 3
 
-# autodoc: members in source order; type hints stay in the signatures.
+# autodoc: members in source order. The docstrings are plain reST prose (no numpy or
+# Google sections), so no napoleon.
 autodoc_member_order = "bysource"
-autodoc_default_options = {"members": True, "show-inheritance": False}
-napoleon_google_docstring = False
-napoleon_numpy_docstring = True
+# (no autodoc_default_options "members": in Sphinx 5.3 a default of True overrides the
+# member lists that api.md gives some modules; each directive says :members: itself)
 
 html_theme = "furo"
 html_title = f"cosim {release}"
