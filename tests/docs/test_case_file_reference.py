@@ -14,7 +14,7 @@ def test_committed_page_is_up_to_date():
     fresh = render_markdown()
     if committed != fresh:
         diff = "".join(list(difflib.unified_diff(committed.splitlines(True), fresh.splitlines(True),
-                                                 "committed", "from the schema", n=0))[:40])
+                                                 "docs/reference/case-file.md", "from the schema", n=0))[:40])
         raise AssertionError(f"{PAGE} is out of date with cosim/case.py: run `make docs-reference` "
                              f"and commit the page.\n{diff}")
 
