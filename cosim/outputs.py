@@ -202,9 +202,21 @@ def kept_on_resume(t, resume_time, keep_resume_instant):
     return t < resume_time - margin or (keep_resume_instant and t <= resume_time + margin)
 
 
+def at_resume_instant(t, resume_time):
+    """Whether a time ``t`` read back from a file is the resume instant itself."""
+    return abs(t - resume_time) <= RESUME_TOLERANCE * abs(resume_time)
+
+
 class CsvSeries:
     """A CSV time series, one flushed row at a time; on resume keeps the rows before
-    ``resume_time`` (and the one at it, with ``keep_resume_instant``)."""
+    ``resume_time`` (and the one at it, with ``keep_resume_instant``).
+
+    The row of the resume instant is never to be computed again after a checkpoint is loaded:
+    what a row reads of the last step (contact forces, hence the unbalanced force ratio and the
+    coordination number) is not in a checkpoint resumed over another rank count, so it would read
+    "no contacts". A kind that writes a row before its checkpoint keeps the one the file has
+    (``keep_resume_instant`` when the instant is an output instant of the resumed run, so a
+    final row off the output grid is dropped); ``resume_row_kept`` says whether it had one."""
 
     def __init__(self, path, columns, resume_time=None, keep_resume_instant=True):
         self.path, self.columns = Path(path), list(columns)
@@ -213,6 +225,8 @@ class CsvSeries:
             with open(self.path) as f:
                 kept = [r for r in csv.DictReader(f)
                         if kept_on_resume(float(r[self.columns[0]]), resume_time, keep_resume_instant)]
+        self.resume_row_kept = bool(kept) and resume_time is not None and keep_resume_instant and \
+            at_resume_instant(float(kept[-1][self.columns[0]]), resume_time)
         self._file = open(self.path, "w", newline="")
         self._writer = csv.writer(self._file)
         self._writer.writerow(self.columns)
@@ -226,6 +240,15 @@ class CsvSeries:
 
     def close(self):
         self._file.close()
+
+
+def resume_row_missing(series, output_instant, comm=None):
+    """Whether a resumed run must write the row of its resume instant itself: an output
+    instant (``output_instant``) whose row the file did not have (``output.interval`` changed on
+    ``--resume``). With ``comm``, rank 0's ``series`` (:class:`CsvSeries`) decides for every
+    rank (collective); without, the caller is the one process that writes."""
+    missing = bool(output_instant) and not (series is not None and series.resume_row_kept)
+    return comm.bcast(missing, root=0) if comm is not None else missing
 
 
 class ProgressLine:

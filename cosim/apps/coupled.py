@@ -40,6 +40,7 @@ from cosim.outputs import (
     commit_checkpoint,
     is_root,
     mpi_comm,
+    resume_row_missing,
     save_engine_checkpoint,
     say,
     staged,
@@ -191,12 +192,14 @@ def run(prepared):
     say(f"[{case.case.name}] FE dt = {fe_dt:.3e} s, DEM dt = {dem_dt:.3e} s ({n_sub} DEM steps per FE step), "
         f"{total} FE steps, output every {every}{fe_layout(solid)}")
 
-    # on resume, the rows from the checkpoint's instant on are written again (that instant's
-    # only if it is an output step, as in an uninterrupted run)
+    # on resume, the row of the checkpoint's instant is the file's if it is an output step (as in
+    # an uninterrupted run; a final row off the output grid is dropped): not computed again from
+    # the loaded state, whose last-step contacts are unknown after a resume over another rank count
     resume_time = solid.time if resume else None
-    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time, keep_resume_instant=False) \
+    output_instant = solid.step_count % every == 0
+    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time, keep_resume_instant=output_instant) \
         if is_root() else None
-    frames = PvdCollection(out_dir / "particles.pvd", resume_time, keep_resume_instant=False) \
+    frames = PvdCollection(out_dir / "particles.pvd", resume_time, keep_resume_instant=output_instant) \
         if is_root() and case.output.vtk else None
     from fe_domain.output import FieldWriter
     fields = FieldWriter(solid, out_dir / ("fields_from_step%d" % solid.step_count if resume else "fields"),
@@ -205,7 +208,7 @@ def run(prepared):
     if resume:
         interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
         say(f"[{case.case.name}] resumed at FE step {solid.step_count} (t = {solid.time:.4e} s)")
-    if not resume or solid.step_count % every == 0:
+    if not resume or resume_row_missing(series, output_instant, mpi_comm()):
         record(solid, engine, interface, series, frames, out_dir, case.output.vtk)
     last_checkpoint = time.perf_counter()
     stepper = CoupledStepper(solid, engine, interface, n_sub)

@@ -22,6 +22,7 @@ from cosim.outputs import (
     ProgressLine,
     PvdCollection,
     mpi_comm,
+    resume_row_missing,
     save_engine_checkpoint,
     say,
     write_run_metadata,
@@ -237,11 +238,16 @@ def _run_engine(case, engine, out_dir, resume):
 
     energy_keys = list(engine.energy())
     series = frames = None
+    # on resume, the row of the checkpoint's instant is the file's if it is an output step (a final
+    # row off the output grid is dropped): not computed again from the loaded state, whose last-step
+    # contacts are unknown after a resume over another rank count (cosim.outputs.CsvSeries)
+    output_instant = engine.step_count % every == 0
     if root:
         series = CsvSeries(out_dir / "series.csv",
                            [*SERIES_COLUMNS, *energy_keys],
-                           resume_time=engine.time if resume else None)
-        frames = PvdCollection(out_dir / "particles.pvd", engine.time if resume else None)
+                           resume_time=engine.time if resume else None, keep_resume_instant=output_instant)
+        frames = PvdCollection(out_dir / "particles.pvd", engine.time if resume else None,
+                               keep_resume_instant=output_instant)
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=engine.step_count)
     last_checkpoint = time.perf_counter()
 
@@ -259,7 +265,7 @@ def _run_engine(case, engine, out_dir, resume):
         due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
         return comm.bcast(due, root=0) if comm is not None else due
 
-    if not resume:
+    if not resume or resume_row_missing(series, output_instant, comm):
         record()
     while engine.step_count < total:
         advance(engine, min(every - engine.step_count % every, total - engine.step_count, PROGRESS_CHUNK))

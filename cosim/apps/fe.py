@@ -100,10 +100,14 @@ def run(prepared):
 
     reactions = case.fe.reactions
     resume_time = solver.time if resume else None
+    # on resume, the rows of the checkpoint's instant are the files' if it is an output step (a
+    # final row off the output grid is dropped, as an uninterrupted run has none there)
+    output_instant = solver.step_count % every == 0
     series = energies = None
     if is_root():
-        series = CsvSeries(out_dir / "series.csv", [*SERIES_COLUMNS, *reaction_columns(reactions)], resume_time)
-        energies = CsvSeries(out_dir / "energies.csv", ENERGY_COLUMNS, resume_time)
+        series = CsvSeries(out_dir / "series.csv", [*SERIES_COLUMNS, *reaction_columns(reactions)], resume_time,
+                           keep_resume_instant=output_instant)
+        energies = CsvSeries(out_dir / "energies.csv", ENERGY_COLUMNS, resume_time, keep_resume_instant=output_instant)
     fields = FieldWriter(solver, out_dir / ("fields_from_step%d" % solver.step_count if resume else "fields"))
     progress = ProgressLine(case.case.name, total, case.output.progress_interval, first_step=solver.step_count)
     last_checkpoint = time.perf_counter()

@@ -69,18 +69,24 @@ def test_run_writes_series_frames_and_provenance(tmp_path):
 
 
 def test_resume_continues_exactly_where_an_uninterrupted_run_would_be(tmp_path):
+    """Stopped on an output row (step 200: kept) or between two (step 220: its final row is
+    dropped, the uninterrupted run has none there), then resumed: every row and the end state
+    are the uninterrupted run's."""
     case = small_case(tmp_path)
-    straight, split = tmp_path / "straight", tmp_path / "split"
+    straight = tmp_path / "straight"
     assert cosim("run", str(case), "--out", str(straight)).returncode == 0
-    assert cosim("run", str(case), "--out", str(split), "--set", "time.steps=200").returncode == 0
-    res = cosim("run", str(case), "--out", str(split), "--resume")
-    assert res.returncode == 0, res.stderr
-    a, b = rows(straight / "series.csv"), rows(split / "series.csv")
-    assert [r["step"] for r in a] == [r["step"] for r in b]
-    assert a[-1] == b[-1]
-    with np.load(straight / "checkpoint.npz") as x, np.load(split / "checkpoint.npz") as y:
-        for key in x.files:
-            np.testing.assert_array_equal(x[key], y[key], err_msg=key)
+    a = rows(straight / "series.csv")
+    assert "200" in [r["step"] for r in a] and "220" not in [r["step"] for r in a]
+    for stop in (200, 220):
+        split = tmp_path / f"split{stop}"
+        assert cosim("run", str(case), "--out", str(split), "--set", f"time.steps={stop}").returncode == 0
+        assert rows(split / "series.csv")[-1]["step"] == str(stop)
+        res = cosim("run", str(case), "--out", str(split), "--resume")
+        assert res.returncode == 0, res.stderr
+        assert rows(split / "series.csv") == a, stop
+        with np.load(straight / "checkpoint.npz") as x, np.load(split / "checkpoint.npz") as y:
+            for key in x.files:
+                np.testing.assert_array_equal(x[key], y[key], err_msg=key)
 
 
 def test_resume_without_checkpoint_is_a_clear_error(tmp_path):

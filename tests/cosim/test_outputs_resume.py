@@ -14,6 +14,7 @@ from cosim.outputs import (
     commit_checkpoint,
     finish_commit,
     kept_on_resume,
+    resume_row_missing,
     staged,
 )
 
@@ -39,6 +40,25 @@ def test_series_and_collection_keep_what_precedes_the_resume_instant(tmp_path):
     resumed.close()
     assert (tmp_path / "s.csv").read_text().splitlines()[1:] == ["1e-13,0", "0.1,1"]
     assert len(PvdCollection(tmp_path / "p.pvd", resume_time=0.2).entries) == 3
+
+
+@pytest.mark.parametrize("output_instant", [True, False])
+def test_the_row_of_the_resume_instant_comes_from_the_file_not_from_the_loaded_state(tmp_path, output_instant):
+    """A run resumed on an output instant keeps the row the file has (computed again from a
+    checkpoint of another rank count it read "no contacts": ratio 1, coordination 0) and writes
+    it only if the file lacks it; off the output grid the file's final row is dropped."""
+    series = CsvSeries(tmp_path / "s.csv", ["time", "x"])
+    for k in range(3):
+        series.append([k * 0.1, float(k)])
+    series.close()
+    resumed = CsvSeries(tmp_path / "s.csv", ["time", "x"], resume_time=0.2, keep_resume_instant=output_instant)
+    resumed.close()
+    assert resumed.resume_row_kept == output_instant
+    assert not resume_row_missing(resumed, output_instant)
+    assert len((tmp_path / "s.csv").read_text().splitlines()) == (4 if output_instant else 3)
+    lacking = CsvSeries(tmp_path / "s.csv", ["time", "x"], resume_time=0.25, keep_resume_instant=output_instant)
+    lacking.close()  # an instant the file has no row of (output.interval changed on --resume)
+    assert not lacking.resume_row_kept and resume_row_missing(lacking, output_instant) == output_instant
 
 
 def test_a_checkpoint_of_several_files_is_committed_whole(tmp_path):

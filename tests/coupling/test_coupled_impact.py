@@ -128,21 +128,43 @@ def test_more_ranks_with_the_fe_partitioned_give_the_one_rank_result_and_conserv
         assert drift.max() < 1e-12 * p0, axis
 
 
+def output_row_in_contact(series):
+    """A duration that ends a run on the first output row (not the last) where grains touch:
+    its checkpoint sits on that row, whose contact diagnostics a resume must not read as
+    "no contacts" (unbalanced force ratio 1, coordination number 0)."""
+    touching = np.flatnonzero(series["unbalanced_force_ratio"][:-1] < 1.0)
+    assert touching.size, "no grain touches at an output row: the test shows nothing"
+    return float(series["time"][touching[0]]) * (1.0 - 1e-7)  # ceil(duration / Δt) is that row's step
+
+
+def assert_same_rows(s, reference):
+    """Row for row: the same instants, every column to the CSV's 10 digits (the momentum sums,
+    round-off around zero, to 1e-12 of the grains' initial momentum)."""
+    np.testing.assert_array_equal(s["fe_step"], reference["fe_step"])
+    np.testing.assert_array_equal(s["time"], reference["time"])
+    p0 = reference["momentum_dem_z"][0]
+    for key in reference:
+        atol = 1e-12 * p0 if key.startswith(("momentum", "impulse")) else 1e-9 * np.abs(reference[key]).max()
+        np.testing.assert_allclose(s[key], reference[key], rtol=1e-8, atol=atol, err_msg=key)
+
+
 @pytest.mark.parametrize("fe_partition", ["replicated", "distributed"])
 def test_a_two_rank_checkpoint_resumes_on_one_rank(one_rank, tmp_path, fe_partition):
-    """Half the run on 2 ranks, the rest on 1 (the DEM from its rank-count-free checkpoint).
-    With the FE replicated its checkpoint is the 1-rank one: the 1-rank run to the last bit;
-    partitioned, the FE nodes are found by their mesh-input index: the 1-rank history to the
-    CSV's 10 digits."""
+    """Part of the run on 2 ranks, the rest on 1 (the DEM from its rank-count-free checkpoint),
+    the checkpoint on an output row with grains in contact. With the FE replicated its
+    checkpoint is the 1-rank one: the 1-rank run to the last bit; partitioned, the FE nodes
+    are found by their mesh-input index: the 1-rank history to the CSV's 10 digits. Every row,
+    the resume row's contact diagnostics too (they read 1 and 0 when the row was computed again
+    from a checkpoint without the last step's contacts)."""
     case, s1, out1 = one_rank
     out = tmp_path / "split"
-    run(case, out, "--set", "time.duration=0.003", "--set", f'coupling.fe_partition="{fe_partition}"', mpi=2)
+    run(case, out, "--set", f"time.duration={output_row_in_contact(s1)!r}",
+        "--set", f'coupling.fe_partition="{fe_partition}"', mpi=2)
     s, stdout = run(case, out, "--resume")
     assert "resumed at FE step" in stdout
     if fe_partition == "replicated":
         assert_same_state(out1, out)
-    for key in ("momentum_fe_z", "momentum_dem_z", "interface_displacement_z"):
-        np.testing.assert_allclose(s[key], s1[key], rtol=1e-8, atol=1e-9 * np.abs(s1[key]).max(), err_msg=key)
+    assert_same_rows(s, s1)
 
 
 def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
@@ -159,19 +181,21 @@ def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
         assert np.interp(t_end, s4["time"], s4[key]) == pytest.approx(expected, rel=1e-2), key
 
 
-@pytest.mark.parametrize("smoothing_time", [0.0, 2e-5])
-def test_a_stopped_run_resumes_bit_for_bit(tmp_path, smoothing_time):
-    """Run half, resume to the end: the CSV rows, the FE state, the grains with their
+@pytest.mark.parametrize("smoothing_time, stop", [(0.0, "between rows"), (2e-5, "on a row")])
+def test_a_stopped_run_resumes_bit_for_bit(tmp_path, smoothing_time, stop):
+    """Run part, resume to the end: the CSV rows, the FE state, the grains with their
     contact history and the impulse in transit (with the smoothing on, the part held back
-    too) are those of the uninterrupted run, to the last bit. With the smoothing on the
-    momentum of FE + DEM + impulse in transit is conserved to round-off as well. (Under
-    mpirun the FE checkpoint needs the same mesh partition, which DOLFINx does not promise
-    from run to run: a resume that does not fit is refused.)"""
+    too) are those of the uninterrupted run, to the last bit, whether the first part ends
+    between output rows (its last row is dropped) or on one with grains in contact (kept).
+    With the smoothing on the momentum of FE + DEM + impulse in transit is conserved to
+    round-off as well. (Under mpirun the FE checkpoint needs the same mesh partition, which
+    DOLFINx does not promise from run to run: a resume that does not fit is refused.)"""
     case = impact_case(tmp_path, duration=0.004, name="resumed")
     straight, split = tmp_path / "straight", tmp_path / "split"
     smoothing = ("--set", f"coupling.smoothing_time={smoothing_time}")
     a, _ = run(case, straight, *smoothing)
-    run(case, split, "--set", "time.duration=0.002", *smoothing)
+    duration = 0.002 if stop == "between rows" else output_row_in_contact(a)
+    run(case, split, "--set", f"time.duration={duration!r}", *smoothing)
     b, out = run(case, split, "--resume", *smoothing)
     assert "resumed at FE step" in out
     p0 = a["momentum_dem_z"][0]
