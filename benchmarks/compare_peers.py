@@ -44,10 +44,10 @@ BASE_ENV = dict(os.environ)  # the peers get the environment as it was, without 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import beds  # noqa: E402
 import dem_throughput as ours  # noqa: E402
+import mpi_launch  # noqa: E402
 
 STEPS = 2000
-ENV = dict(BASE_ENV, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
+ENV = mpi_launch.mpi_env(BASE_ENV)  # OpenMPI's run-as-root and oversubscribe permissions where unset
 
 # LIGGGHTS 3.8 deck; @NAME@ is filled in by peer_inputs(), ${N} and ${L} are LIGGGHTS variables.
 LIGGGHTS_DECK = """\

@@ -38,13 +38,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import mpi_launch  # noqa: E402
+
 OUT = ROOT / "benchmarks" / "out"
 FLAGSHIP = ROOT / "runs" / "coupled_footing_on_sand.toml"
 REPEATS = 5
@@ -79,13 +80,10 @@ def median(values):
 def run_worker(script, ranks, worker_args):
     """``mpirun -n ranks python script --worker worker_args`` with 1 Numba thread per rank;
     exits with the worker's output if it fails."""
-    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
+    env = mpi_launch.mpi_env(NUMBA_NUM_THREADS="1")  # and OpenMPI's root/oversubscribe permissions where unset
     cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks), sys.executable, str(script), "--worker",
            *map(str, worker_args)]
-    done = subprocess.run(cmd, env=env, cwd=ROOT, capture_output=True, text=True, timeout=1800)
-    if done.returncode:
-        sys.exit(f"worker failed ({' '.join(cmd)}):\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
+    mpi_launch.run(cmd, env=env, cwd=ROOT, timeout=1800)  # a failure: exit code and stderr, once
 
 
 def run_on_every_rank(work, *args):

@@ -38,9 +38,9 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 import beds  # noqa: E402
+import mpi_launch  # noqa: E402
 
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
+ENV = mpi_launch.mpi_env()  # OpenMPI's run-as-root and oversubscribe permissions where unset
 CORES = os.cpu_count() or 1
 
 
@@ -83,8 +83,9 @@ def ours(n, steps, ranks, threads, bound=True):
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", str(n), str(steps), str(threads)]
     if ranks > 1:
         cmd = mpirun(ranks, bound) + cmd
-    out = subprocess.run(cmd, env=ENV, check=True, capture_output=True, text=True, timeout=TIMEOUT).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    # the worker's JSON line, wherever mpirun's escape sequences or trailing text put it; a
+    # failed worker ends the benchmark with mpirun's exit code and stderr, once
+    return mpi_launch.run_json(cmd, env=ENV, timeout=TIMEOUT)
 
 
 def liggghts_inputs(workdir, n, steps):
@@ -107,8 +108,7 @@ def liggghts(workdir, n, steps, ranks, L):
     cmd = ["liggghts", "-echo", "none", "-var", "N", str(n), "-var", "L", f"{L:g}", "-in", "in.bed", "-log", log]
     if ranks > 1:
         cmd = mpirun(ranks) + cmd
-    subprocess.run(cmd, cwd=workdir, env=dict(ENV, OMP_NUM_THREADS="1"), check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.STDOUT, timeout=TIMEOUT)
+    mpi_launch.run(cmd, cwd=workdir, env=dict(ENV, OMP_NUM_THREADS="1"), timeout=TIMEOUT)
     loops = re.findall(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps", (Path(workdir) / log).read_text())
     seconds, done = loops[-1]
     assert int(done) == steps, loops

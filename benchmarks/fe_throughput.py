@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import mpi_launch  # noqa: E402
+
 OUT = ROOT / "benchmarks" / "out"
 DEFAULT_SIZES = (0.045, 0.0226)      # ≈ 50k and ≈ 400k tetrahedra in the unit cube
 MIN_SECONDS = 0.5
@@ -119,15 +120,15 @@ def main() -> None:
     if args.worker:
         worker(args.worker)
         return
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
+    env = mpi_launch.mpi_env()  # OpenMPI's run-as-root and oversubscribe permissions where unset
     rows = []
     for size in args.sizes:
         path = mesh_file(size)
         for ranks in args.ranks:
             command = ["mpirun", "-n", str(ranks), sys.executable, __file__, "--worker", str(path)]
-            output = subprocess.run(command, env=env, cwd=ROOT, check=True, capture_output=True, text=True).stdout
-            rows.append(json.loads(next(line for line in output.splitlines() if line.startswith("RESULT "))[7:]))
+            # the RESULT line's JSON, escape sequences and trailing text tolerated; a failed
+            # worker ends the benchmark with mpirun's exit code and stderr, once
+            rows.append(mpi_launch.run_json(command, prefix="RESULT ", env=env, cwd=ROOT))
             print(f"  done: h = {size:g} m, {ranks} rank(s)", file=sys.stderr, flush=True)
     header = (f"{'cells':>8} {'ranks':>5} | {'mixed step':>10} {'cell-steps/s':>13} {'/floor':>6} | "
               f"{'displ. step':>11} {'cell-steps/s':>13} {'/floor':>6} | {'floor':>8} | {'PETSc step':>10} | "
