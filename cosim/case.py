@@ -792,6 +792,38 @@ def geometry_parameters(geo_file):
     return set(re.findall(r'Name\s+"Parameters/([^"]+)"', Path(geo_file).read_text(errors="replace")))
 
 
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def parameter_ranges(geo_file):
+    """``{name: (min, max)}`` of the ``DefineConstant`` parameters of a .geo source: the range
+    its ``Min`` and ``Max`` attributes declare (None where one is not declared)."""
+    text = Path(geo_file).read_text(errors="replace")
+    starts = [m.end() for m in re.finditer(r"\w+\s*=\s*\{", text)] + [len(text)]  # "name = {" of each entry
+    ranges = {}
+    for entry in re.finditer(r'Name\s+"Parameters/([^"]+)"', text):
+        start = max((k for k in starts if k <= entry.start()), default=0)
+        end = min((k for k in starts if k > entry.end()), default=len(text))
+        attributes = text[start:end].split("]", 1)[0]  # to the next entry or the end of DefineConstant[...]
+        bounds = [re.search(rf"\b{bound}\s+({_NUMBER})", attributes) for bound in ("Min", "Max")]
+        ranges[entry.group(1)] = tuple(float(b.group(1)) if b else None for b in bounds)
+    return ranges
+
+
+def _check_geometry_parameter(path, mesh, name, value, bounds):
+    """A .geo parameter the case sets: within the range its DefineConstant declares, and not
+    negative where it declares no lower bound (the lengths and counts of a geometry)."""
+    low, high = bounds
+    key = f"fe.geometry_parameters.{name}"
+    if low is None and value < 0:
+        raise CaseError(path, key, value, f"must be >= 0: {mesh.name} declares no lower bound for {name} (a length "
+                                          "or a count); a .geo parameter may be negative only where its "
+                                          "DefineConstant declares a Min below zero")
+    if (low is not None and value < low) or (high is not None and value > high):
+        allowed = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+        raise CaseError(path, key, value, f"outside the range {allowed} {mesh.name} declares for {name}")
+
+
 def _check_fe(path, fe):
     mesh = mesh_path(path, fe.mesh)
     if not mesh.is_file():
@@ -802,11 +834,12 @@ def _check_fe(path, fe):
     if mesh.suffix == ".geo" and fe.mesh_size is None:
         raise CaseError(path, "fe.mesh_size", None, "a .geo source needs a mesh size > 0 [m]")
     if mesh.suffix == ".geo":
-        known = geometry_parameters(mesh)
-        for name in fe.geometry_parameters:
+        known = parameter_ranges(mesh)
+        for name, value in fe.geometry_parameters.items():
             if name not in known:
-                raise CaseError(path, f"fe.geometry_parameters.{name}", fe.geometry_parameters[name],
+                raise CaseError(path, f"fe.geometry_parameters.{name}", value,
                                 f"{mesh.name} defines no such parameter; its parameters: {sorted(known)}")
+            _check_geometry_parameter(path, mesh, name, value, known[name])
     if mesh.suffix == ".msh" and not Path(mesh).read_bytes()[:200].lstrip().startswith(b"$MeshFormat"):
         raise CaseError(path, "fe.mesh", fe.mesh, f"{mesh.name} is not a gmsh .msh file (no $MeshFormat header)")
     groups = physical_groups(mesh)
@@ -867,6 +900,9 @@ def _check_packing_file(path, key, value):
     if f.suffix not in (".npz", ".txt", ".dat", ".dump"):
         raise CaseError(path, key, value,
                         "allowed formats: .npz, .txt/.dat ('x y z r'), .dump (LIGGGHTS 'id radius x y z')")
+    if f.stat().st_size == 0:
+        raise CaseError(path, key, value, f"the file {f} is empty (0 bytes); give a packing with spheres: .npz "
+                                          "(arrays 'positions', 'radii'), .txt/.dat ('x y z r') or .dump")
 
 
 def _check_dem(path, dem):

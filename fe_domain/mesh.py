@@ -15,6 +15,7 @@ Physical-group names are broadcast with the mesh so that case files can say
 from __future__ import annotations
 
 import functools
+import math
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,6 +75,18 @@ class MeshError(ValueError):
     """gmsh could not make a usable tetrahedral mesh of a source (raised on every rank)."""
 
 
+class MeshSizeTooLarge(MeshError):
+    """The mesh size exceeds the largest extent of the whole geometry (found before meshing)."""
+
+    def __init__(self, mesh_size, extent):
+        super().__init__(mesh_size, extent)
+        self.mesh_size, self.extent = mesh_size, extent
+
+    def __str__(self):
+        return (f"mesh size {self.mesh_size:g} m is larger than the whole geometry (its largest extent is "
+                f"{self.extent:.6g} m)")
+
+
 def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
     """Build a gmsh model with ``build()`` on ``rank`` and distribute it into a TaggedMesh.
 
@@ -89,10 +102,14 @@ def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
             groups = {gmsh.model.getPhysicalName(dim, tag): (dim, tag)
                       for dim, tag in gmsh.model.getPhysicalGroups()}
             failure = _unusable(groups)
+        except MeshError as exc:  # ours, raised as it is on every rank
+            failure = exc
         except Exception as exc:  # gmsh reports every error as a bare Exception
             failure = f"gmsh: {exc}"
     failure, groups = comm.bcast((failure, groups), root=rank)
     try:
+        if isinstance(failure, MeshError):
+            raise failure
         if failure:
             raise MeshError(failure)
         with _cells_partitioned_by(reproducible_partitioner):
@@ -252,12 +269,25 @@ def _generate(path: Path, mesh_size: float, parameters: dict[str, float] | None)
     for name, value in (parameters or {}).items():
         gmsh.onelab.setNumber(f"Parameters/{name}", [float(value)])
     gmsh.open(str(path))
+    _check_size_fits(mesh_size)
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
     if gmsh.option.getNumber("Mesh.MeshSizeMin") == 0.0:  # a source refining with a size field sets its own
         gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
     gmsh.model.mesh.generate(3)
+
+
+def _check_size_fits(mesh_size: float) -> None:
+    """Raise :class:`MeshSizeTooLarge` when ``mesh_size`` exceeds the largest extent of the
+    opened geometry's bounding box (gmsh would mesh it with degenerate elements, or fail
+    obscurely); a model without entities is left to the checks after meshing."""
+    if not gmsh.model.getEntities():
+        return
+    lo_hi = gmsh.model.getBoundingBox(-1, -1)
+    extent = max(hi - lo for lo, hi in zip(lo_hi[:3], lo_hi[3:], strict=True))
+    if math.isfinite(extent) and 0.0 < extent < mesh_size:
+        raise MeshSizeTooLarge(float(mesh_size), float(extent))
 
 
 def _resolve(path: str | Path, suffix: str) -> Path:

@@ -58,9 +58,14 @@ def build_solid(case, case_path, comm=None):
     """The ExplicitSolid of the case's [fe] section, its mesh partitioned over ``comm`` (default
     all ranks; ``MPI.COMM_SELF``: the whole mesh on this rank); a mesh gmsh cannot make is a
     CaseError."""
-    from fe_domain.mesh import MeshError
+    from fe_domain.mesh import MeshError, MeshSizeTooLarge
     try:
         return _solid(case, case_path, comm or mpi_comm())
+    except MeshSizeTooLarge as exc:
+        raise CaseError(case_path, "fe.mesh_size", case.fe.mesh_size,
+                        f"larger than the whole geometry of {Path(case.fe.mesh).name} (its largest extent is "
+                        f"{exc.extent:.4g} m); give a mesh size below that, small enough for a few elements "
+                        "across the geometry") from None
     except MeshError as exc:
         raise CaseError(case_path, "fe.mesh", case.fe.mesh, f"cannot be meshed: {exc}") from None
 

@@ -171,6 +171,10 @@ CORPUS = [
         files={"bed.npz": npz(positions=np.zeros((5, 3)))}),
     Bad("dem", "could not read the packing", edit=DEM_FILE + (("bed.txt", "bed.npz"),),
         files={"bed.npz": b"not a zip file"}),
+    Bad("dem", "is empty (0 bytes)", edit=DEM_FILE + (("bed.txt", "bed.npz"),), files={"bed.npz": b""},
+        label="zero-length .npz packing"),
+    Bad("shear", "is empty (0 bytes)", cut="[specimen]", append=SPECIMEN_FILE, edit=NO_HEIGHT,
+        files={"specimen.npz": b""}, label="shear: zero-length .npz specimen"),
     Bad("dem", "not used here", edit=DEM_FILE[:1], files={"bed.txt": text_packing(PACKING_OK)},
         label="file packing with count/box/radius"),
     # ---------------------------------------------------------------- --out
@@ -224,6 +228,19 @@ CORPUS = [
         label=".geo syntax error"),
     Bad("fe", "cannot be meshed", sets=["fe.geometry_parameters.B=0.0", "fe.geometry_parameters.b=0.0"],
         label=".geo parameters that leave no volume"),
+    Bad("fe", "fe.geometry_parameters.B' = -2.0: must be >= 0: footing.geo declares no lower bound",
+        sets=["fe.geometry_parameters.B=-2.0"], label="negative .geo length"),
+    Bad("fe", "fe.geometry_parameters.t' = -0.1: must be >= 0", sets=["fe.geometry_parameters.t=-0.1"],
+        label="negative .geo thickness"),
+    Bad("fe", "outside the range [0.5, 2] limits.geo declares for a", sets=['fe.mesh="limits.geo"', "fe.mesh_size=0.5",
+        "fe.geometry_parameters.a=3.0"], files={"limits.geo": b'SetFactory("OpenCASCADE");\n'
+        b'DefineConstant[ a = {1.0, Min 0.5, Max 2, Name "Parameters/a"} ];\nBox(1) = {0, 0, 0, a, a, a};\n'
+        b'Physical Volume("soil") = {1};\nPhysical Surface("soil_bottom") = {5};\n'},
+        label=".geo parameter above its declared Max"),
+    Bad("fe", "fe.mesh_size' = 5.0: larger than the whole geometry of footing.geo (its largest extent is 2",
+        sets=["fe.mesh_size=5.0"], label="mesh size larger than the geometry"),
+    Bad("coupled", "fe.mesh_size' = 1.0: larger than the whole geometry of block.geo (its largest extent is 0.02",
+        sets=["fe.mesh_size=1.0"], label="coupled: mesh size larger than the geometry"),
     # ---------------------------------------------------------------- direct_shear
     Bad("shear", "smaller than box_length", sets=["direct_shear.sample_height=0.07"]),
     Bad("shear", "smaller than box_length", sets=["direct_shear.shear_distance=0.07"]),
