@@ -67,6 +67,14 @@ def runtime():
             "host": platform.node()}
 
 
+def compilation_seconds():
+    """Seconds this process has spent compiling so far: Numba kernels and DOLFINx's FFCx forms,
+    cache misses only (a later run loads both from their on-disk caches)."""
+    from fe_domain import jit
+    from numba_support import compile_clock
+    return compile_clock.seconds() + jit.compile_seconds()
+
+
 def atomic_write_text(path, text):
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")

@@ -42,6 +42,7 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import time
 
 #: Printed once per process on the first JIT cache miss (the 13 kernels of ``make demo``,
 #: elements, forms and the von Mises expression, compile in 4.3-4.9 s on 2 idle cores).
@@ -51,6 +52,12 @@ VERBOSE_ENV = "FE_DOMAIN_JIT_VERBOSE"
 
 logger = logging.getLogger("fe_domain.jit")
 _announced = False
+_compile_seconds = 0.0
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent in FFCx compilations (cache misses only)."""
+    return _compile_seconds
 
 
 class _CompilerLogFilter(logging.Filter):
@@ -85,12 +92,15 @@ def _announce() -> None:
 def _quiet(compile_objects):
     @functools.wraps(compile_objects)
     def quiet_compile_objects(*args, **kwargs):
+        global _compile_seconds
         _announce()
         root = logging.getLogger()
         root.addFilter(_FILTER)
+        start = time.perf_counter()
         try:
             return compile_objects(*args, **kwargs)
         finally:
+            _compile_seconds += time.perf_counter() - start
             root.removeFilter(_FILTER)
 
     quiet_compile_objects._fe_domain_quiet = True

@@ -5,4 +5,5 @@
                      so that a cached caller never runs a stale callee
     dispatch.py      CachedEntry: a compiled kernel called again without Numba typing its
                      arguments each time
+    compile_clock.py seconds spent compiling kernels (not loading them from the cache)
 """
