@@ -163,7 +163,12 @@ def solid_volume(engine, region):
 
 def _solid_volume(p, region):
     mine = p.owned
-    pos, rad = p.pos[mine], p.radius[mine]
+    return spheres_solid_volume(p.pos[mine], p.radius[mine], region)
+
+
+def spheres_solid_volume(pos, rad, region):
+    """Volume of the parts of the spheres (centres ``pos``, radii ``rad``) inside ``region``:
+    whole spheres inside, quadrature for those cut by a box face, the exact lens for a sphere."""
     total = 0.0
     if isinstance(region, SphereRegion):
         d = np.linalg.norm(pos - np.asarray(region.center, float), axis=1)
