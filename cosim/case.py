@@ -376,6 +376,11 @@ class FootingSection(_Section):
         default=0.1, gt=0, le=0.5,
         description="the run ends at this settlement, as a fraction of B [-]")
     rows: int = Field(default=100, ge=10, le=100000, description="CSV rows over the settlement [-]")
+    seating_pressure: float = Field(
+        default=0.0, ge=0,
+        description="seating load: the footing moves down from the highest grain under it until it carries this "
+                    "bearing pressure, and the settlement is counted from there, in both models (as a plate load "
+                    "test zeroes its gauge under a seating load); 0: from the first contact [Pa]")
     material: str = Field(default="plate", description="material name of the footing ([[dem.materials]])")
     sand_material: str = Field(default="sand", description="material name of the grains")
     side_wall_material: str = Field(
@@ -393,7 +398,7 @@ class SoilSection(_Section):
     width: float = Field(gt=0, description="soil block width W along x (all-DEM: the box) [m]")
     depth: float = Field(gt=0, description="soil block depth H along z [m]")
     thickness: float = Field(gt=0, description="slice thickness L_y along y, walls or rollers on both faces [m]")
-    E: float = Field(gt=0, description="Young's modulus of the FE soil (e.g. from `cosim lab elastic`) [Pa]")
+    E: float = Field(gt=0, description="Young's modulus of the FE soil (e.g. from `cosim elastic`) [Pa]")
     nu: float = Field(ge=0, lt=0.5, description="Poisson's ratio of the FE soil [-]")
     rho: Optional[float] = Field(
         default=None, gt=0,

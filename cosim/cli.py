@@ -40,14 +40,16 @@ def _parser():
     check.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
     check.add_argument("--out", metavar="DIR", help="output folder the run would use (checked, not created)")
 
-    series = sub.add_parser("series", help="direct shear series: cases x normal stresses, Mohr-Coulomb fit",
-                            description="Run each direct_shear CASE (one specimen each, e.g. dense and loose) at "
-                                        "every normal stress and fit the Mohr-Coulomb envelope (phi, c) of peak "
-                                        "and residual strength.")
-    series.add_argument("cases", metavar="CASE.toml", nargs="+", help="direct_shear case files")
+    series = sub.add_parser("series", help="direct shear or triaxial series: cases x stresses, Mohr-Coulomb fit",
+                            description="Run each direct_shear or triaxial CASE (one specimen each, e.g. dense and "
+                                        "loose) at every normal stress (direct shear) or cell pressure "
+                                        "(triaxial) and fit the Mohr-Coulomb envelope (phi, c) of peak and "
+                                        "residual (critical-state) strength.")
+    series.add_argument("cases", metavar="CASE.toml", nargs="+", help="direct_shear or triaxial case files")
     series.add_argument("--stresses", type=float, nargs="+", default=[50e3, 100e3, 200e3], metavar="PA",
-                        help="normal stresses [Pa] (default 50e3 100e3 200e3)")
-    series.add_argument("--out", metavar="DIR", default="runs/out/direct_shear_series", help="output folder")
+                        help="normal stresses or cell pressures [Pa] (default 50e3 100e3 200e3)")
+    series.add_argument("--out", metavar="DIR", default="runs/out/direct_shear_series",
+                        help="output folder (default runs/out/direct_shear_series, also for triaxial cases)")
     series.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override one value in every case; repeatable")
 
@@ -65,9 +67,9 @@ def _parser():
     elastic.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")
 
     calibrate = sub.add_parser(
-        "calibrate", help="fit the sand's micro-parameters to direct shear targets",
+        "calibrate", help="fit the sand's micro-parameters to direct shear or triaxial targets",
         description="Search the sand's micro-parameters (friction, rolling_stiffness, rolling_friction, "
-                    "stiffness_ratio, within bounds) until a direct_shear case gives the target results "
+                    "stiffness_ratio, within bounds) until a direct_shear or triaxial case gives the target results "
                     "(phi_peak, phi_res, dilation, void ratio change at stated normal stresses), then confirm "
                     "them on a full-size case and write calibrated.toml and a report (cosim/lab/calibrate.py). "
                     "Rerun to continue an interrupted calibration. Exit 0 when every target is reached, 1 when "

@@ -55,6 +55,7 @@ from cosim.outputs import (
     PvdCollection,
     atomic_write_text,
     commit_checkpoint,
+    compilation_seconds,
     is_root,
     mpi_comm,
     save_engine_checkpoint,
@@ -65,6 +66,7 @@ from cosim.outputs import (
 from cosim.specimen import SpecimenBox, curve_of, make_specimen, read_specimen
 
 SETTLEMENT_LEVELS = (0.02, 0.05, 0.10)  # s/B at which the bearing pressure is reported
+MEAN_RANGE = (0.01, 0.10)  # s/B over which the mean bearing pressure is reported
 COLUMNS = ["time", "settlement", "settlement_ratio", "footing_force_z", "bearing_pressure",
            "interface_force_z", "unbalanced_force_ratio", "step"]
 REST_COLUMNS = ["time", "interface_force_z", "grain_weight", "unbalanced_force_ratio"]
@@ -329,6 +331,7 @@ def run(prepared):
     write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
     name = f"{case.case.name}/{case.footing.model}"
     clock = {}
+    compiling_before = compilation_seconds()
 
     if prepared.resume:
         state = json.loads((out_dir / STATE).read_text())
@@ -352,21 +355,25 @@ def run(prepared):
         clock["rest_s"] = time.perf_counter() - t0
         state = {"specimen_info": specimen_info, "rest": rest, "clock": clock, "grains": len(grains[1]),
                  "cells": n_cells, "surface": model.surface, "soil_density": model.soil_density, "row": 0,
-                 "loading_before_s": 0.0}
+                 "loading_before_s": 0.0, "compilation_before_s": 0.0}
 
+    state["compilation_before_s"] = state.get("compilation_before_s", 0.0) + compilation_seconds() - compiling_before
+    compiling_before = compilation_seconds()
     t0 = time.perf_counter()
     series = load(case, model, out_dir, name, state, prepared.resume)
     clock = {**state["clock"], "loading_s": state["loading_before_s"] + time.perf_counter() - t0}
+    compiling = state["compilation_before_s"] + compilation_seconds() - compiling_before
     specimen_info, rest, n_grains, n_cells = (state[k] for k in ("specimen_info", "rest", "grains", "cells"))
 
     if is_root():
-        summary = _summary(case, model, n_grains, n_cells, specimen_info, rest, series, clock)
+        summary = _summary(case, model, n_grains, n_cells, specimen_info, rest, series, clock, compiling,
+                           state.get("seating"))
         atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
         plot_load_settlement({case.footing.model: series}, out_dir / "load_settlement.png", case.case.name)
         compare_models(Path(prepared.out_dir), case.case.name)
         say(f"[{name}] q at s/B = " + ", ".join(f"{100 * k:.0f} %: {q / 1e3:.2f} kPa"
                                                 for k, q in summary["bearing_pressure_at"].items())
-            + f"; wall-clock {sum(clock.values()):.0f} s")
+            + f"; wall-clock {sum(clock.values()):.0f} s, of which {compiling:.0f} s compiling (first run only)")
 
 
 def _cells(solid):
@@ -387,7 +394,8 @@ def _specimen(case, built, out_dir, name):
     comm = mpi_comm() if mpi_comm().size > 1 else None
     pos, radii, height, info = make_specimen(case, box, built["curve"], out_dir, comm=comm, label=name,
                                              release_stress=RELEASE_FRACTION * self_weight_stress(case, depth),
-                                             layers=layer_count(case, built["curve"]))
+                                             layers=layer_count(case, built["curve"]),
+                                             bulk_margin=float(built["curve"].diameters[-1]))
     return (pos, radii), height, info
 
 
@@ -472,12 +480,13 @@ def load(case, model, out_dir, name, state, resume=False):
                 if "fe_displacement" in start:
                     fe_start = start["fe_displacement"]
     else:
-        grains = model.engine.global_particles()  # collective
-        z0, first_row = surface_under(footing, grains), 1
-        footing.vertices[:, 2] = z0  # on the highest grain under it: s = 0 at the first contact
+        footing.vertices[:, 2] = surface_under(footing, model.engine.global_particles())  # collective
         footing.velocity = np.array([0.0, 0.0, -ft.velocity])
+        state["seating"] = seat_footing(model, B * ly, ft.seating_pressure, row_time / 4, final, name)
+        z0, first_row = float(footing.vertices[:, 2].mean()), 1
         footing.reset_impulse()
         model.take_interface_impulse()  # the rest phase's is not the loading's
+        grains = model.engine.global_particles()  # collective
         start_grains = grains.pos.copy()
         fe_start = fe_nodes(model.solid)[1] if model.solid is not None else None  # collective
         if is_root():
@@ -537,6 +546,31 @@ def load(case, model, out_dir, name, state, resume=False):
     rows.close()
     plot_displacement_section(case, model, start_grains, grains, out_dir / "displacement_section.png", soil)
     return read_series(out_dir / "series.csv")
+
+
+def seat_footing(model, area, pressure, interval, limit, name):
+    """Move the footing (already on the highest grain under it, moving down) until its bearing
+    pressure, averaged over ``interval`` seconds, reaches ``pressure``: the seating load, after
+    which the settlement is counted. A loose grain on top of the surface carries almost nothing
+    while it is pushed into the surface below it; the seating load skips that travel in both
+    models alike. Returns {"pressure_Pa", "travel_m"}; collective. ``pressure`` = 0: no travel."""
+    footing = model.footing
+    z_contact = float(footing.vertices[:, 2].mean())
+    q = 0.0
+    while q < pressure:
+        footing.reset_impulse()
+        start = model.time
+        model.advance(interval)
+        q = footing.vertex_impulse.sum(axis=0)[2] / (model.time - start) / area
+        if z_contact - float(footing.vertices[:, 2].mean()) > limit:
+            raise RuntimeError(f"[{name}] the footing did not reach its seating pressure {pressure:.4g} Pa within "
+                               f"the whole settlement {limit:.4g} m (it carries {q:.4g} Pa): lower "
+                               "footing.seating_pressure")
+    travel = z_contact - float(footing.vertices[:, 2].mean())
+    if pressure > 0:
+        say(f"[{name}] footing seated: q = {q / 1e3:.3f} kPa after {travel * 1e3:.3f} mm from the first contact "
+            f"(seating pressure {pressure / 1e3:.3g} kPa); the settlement counts from here")
+    return {"pressure_Pa": float(q), "travel_m": travel}
 
 
 def _save_checkpoint(out_dir, model, state):
@@ -613,12 +647,24 @@ def bearing_pressure_at(series, levels=SETTLEMENT_LEVELS):
     return {k: float(np.interp(k, s, q)) for k in levels if reach >= k}
 
 
-def _summary(case, model, n_grains, n_cells, specimen_info, rest, series, clock):
-    """The run's summary (rank 0; no collective in here)."""
+def mean_bearing_pressure(series, span=None):
+    """The mean of q over the rows with s/B in ``span`` (default MEAN_RANGE), or None when none is."""
+    lo, hi = span or MEAN_RANGE
+    s = series["settlement_ratio"]
+    inside = (s >= lo) & (s <= hi + 1e-9)
+    return float(np.mean(series["bearing_pressure"][inside])) if inside.any() else None
+
+
+def _summary(case, model, n_grains, n_cells, specimen_info, rest, series, clock, compiling, seating):
+    """The run's summary (rank 0; no collective in here). ``compiling``: seconds of one-time
+    Numba/FFCx compilation inside the phases' wall-clock (none when the caches were warm)."""
+    total = sum(clock.values())
     out = {"model": case.footing.model, "grains": n_grains, "ranks": mpi_comm().size,
            "dem_dt_s": model.engine.dt, "specimen": {k: v for k, v in specimen_info.items() if k != "generation_log"},
-           "rest": rest, "bearing_pressure_at": bearing_pressure_at(series),
-           "wall_clock_s": {**clock, "total_s": sum(clock.values())}}
+           "rest": rest, "seating": seating, "bearing_pressure_at": bearing_pressure_at(series),
+           "mean_bearing_pressure": mean_bearing_pressure(series),
+           "wall_clock_s": {**clock, "total_s": total, "compilation_s": compiling,
+                            "total_without_compilation_s": total - compiling}}
     if model.solid is not None:
         out.update({"fe_dt_s": model.solid.dt, "subcycles": model.subcycles, "fe_cells": n_cells,
                     "interface_facets": len(model.interface.facets.triangles)})
@@ -707,7 +753,8 @@ def plot_displacement_section(case, model, before, after, path, soil=None):
 
 def compare_models(case_dir, title):
     """When both models' series exist in ``case_dir``: ``comparison.csv`` (q of each at the
-    SETTLEMENT_LEVELS, their difference, the wall-clock) and ``comparison.png``."""
+    SETTLEMENT_LEVELS and its mean over MEAN_RANGE, their difference; the wall-clocks without
+    compilation in a comment line) and ``comparison.png``; prints the same as a table."""
     paths = {m: case_dir / m / "series.csv" for m in ("coupled", "dem")}
     summaries = {m: case_dir / m / "summary.json" for m in paths}
     if not all(p.exists() for p in [*paths.values(), *summaries.values()]):
@@ -716,19 +763,37 @@ def compare_models(case_dir, title):
     curves = {m: read_series(p) for m, p in paths.items()}
     info = {m: json.loads(p.read_text()) for m, p in summaries.items()}
     q = {m: bearing_pressure_at(c) for m, c in curves.items()}
+    rows = [(f"{level:g}", f"{100 * level:g} %", q["coupled"][level], q["dem"][level]) for level in SETTLEMENT_LEVELS
+            if level in q["coupled"] and level in q["dem"]]
+    means = {m: mean_bearing_pressure(c) for m, c in curves.items()}
+    if means["coupled"] is not None and means["dem"] is not None:
+        lo, hi = MEAN_RANGE
+        rows.append((f"mean_{lo:g}-{hi:g}", f"mean {100 * lo:g}-{100 * hi:g} %", means["coupled"], means["dem"]))
+    wall = {m: info[m]["wall_clock_s"] for m in info}
+    warm = {m: w.get("total_without_compilation_s", w["total_s"]) for m, w in wall.items()}
     lines = ["settlement_ratio,q_coupled_Pa,q_dem_Pa,difference"]
-    for level in SETTLEMENT_LEVELS:
-        if level in q["coupled"] and level in q["dem"]:
-            qc, qd = q["coupled"][level], q["dem"][level]
-            lines.append(f"{level},{qc:.6g},{qd:.6g},{(qc - qd) / qd:.4f}")
-    wall = {m: info[m]["wall_clock_s"]["total_s"] for m in info}
-    lines.append(f"# wall-clock s: coupled {wall['coupled']:.1f}, dem {wall['dem']:.1f}, "
-                 f"ratio {wall['dem'] / wall['coupled']:.2f}; grains: coupled {info['coupled']['grains']}, "
+    lines += [f"{key},{qc:.6g},{qd:.6g},{(qc - qd) / qd:.4f}" for key, _, qc, qd in rows]
+    lines.append(f"# wall-clock without compilation, s: coupled {warm['coupled']:.1f}, dem {warm['dem']:.1f}, "
+                 f"ratio {warm['dem'] / warm['coupled']:.2f}; grains: coupled {info['coupled']['grains']}, "
                  f"dem {info['dem']['grains']}")
     atomic_write_text(case_dir / "comparison.csv", "\n".join(lines) + "\n")
     plot_load_settlement({f"coupled ({info['coupled']['grains']} grains + FE)": curves["coupled"],
                           f"all-DEM ({info['dem']['grains']} grains)": curves["dem"]},
                          case_dir / "comparison.png", f"{title}: coupled against all-DEM")
-    say(f"[{title}] comparison: " + "; ".join(lines[1:]))
+    compiling = {m: w.get("compilation_s", 0.0) for m, w in wall.items()}
+    say(comparison_table(title, [row[1:] for row in rows], info, warm, compiling, case_dir))
     return lines
 
+
+def comparison_table(title, rows, info, warm, compiling, case_dir):
+    """The coupled-against-all-DEM comparison as the aligned text a person reads at the end of a run."""
+    out = [f"[{title}] coupled ({info['coupled']['grains']:,} grains + {info['coupled'].get('fe_cells', 0):,} FE "
+           f"cells) against all-DEM ({info['dem']['grains']:,} grains): {case_dir / 'comparison.png'}",
+           f"  {'s/B':>12}  {'q coupled [kPa]':>15}  {'q all-DEM [kPa]':>15}  {'difference':>10}"]
+    out += [f"  {label:>12}  {qc / 1e3:>15.2f}  {qd / 1e3:>15.2f}  {100 * (qc - qd) / qd:>+9.1f} %"
+            for label, qc, qd in rows]
+    out.append(f"  wall-clock without compilation: coupled {warm['coupled']:.0f} s, all-DEM {warm['dem']:.0f} s "
+               f"({warm['dem'] / warm['coupled']:.1f}x less for the coupled model)")
+    out.append(f"  one-time compilation (Numba, FFCx; cached for later runs): {compiling['coupled']:.0f} s in the "
+               f"coupled run, {compiling['dem']:.0f} s in the all-DEM run")
+    return "\n".join(out)
