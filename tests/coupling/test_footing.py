@@ -87,7 +87,20 @@ def test_both_models_from_one_case_and_their_comparison(runs):
     assert dem["rest"]["at_rest"]
     lines = (runs / "comparison.csv").read_text().splitlines()
     assert lines[0].startswith("settlement_ratio") and len([ln for ln in lines if ln[0].isdigit()]) == 3
+    assert any(ln.startswith("mean_0.01-0.1,") for ln in lines)
     assert (runs / "comparison.png").exists()
+
+
+def test_both_models_are_seated_alike_and_report_their_wall_clock_without_compilation(runs):
+    """The settlement counts from the seating load in both models (runs/footing_small.toml: 300 Pa);
+    the compilation inside a run's wall-clock is reported beside it, never more than it."""
+    for model in ("coupled", "dem"):
+        summary = json.loads((runs / model / "summary.json").read_text())
+        assert summary["seating"]["pressure_Pa"] >= 300.0 and summary["seating"]["travel_m"] >= 0.0
+        wall = summary["wall_clock_s"]
+        assert 0.0 <= wall["compilation_s"] <= wall["total_s"]
+        assert wall["total_without_compilation_s"] == pytest.approx(wall["total_s"] - wall["compilation_s"])
+        assert summary["specimen"]["void_ratio_bulk"] < summary["specimen"]["void_ratio_generated"]  # looser walls
 
 
 def test_the_displacement_section_has_the_fe_soil_of_the_coupled_model(runs):
