@@ -246,7 +246,7 @@ class Model:
         return self.interface.facets.vertex_impulse.sum(axis=0) / self.solid.dt
 
     def grain_weight(self):
-        """Σ m |g| of the grains (N), over all ranks."""
+        """Σ m ``|g|`` of the grains (N), over all ranks."""
         from de_domain.comm import sum_in_rank_order
         p = self.engine.particles
         mass = np.array([np.sum(p.mass[p.owned])])
@@ -679,7 +679,7 @@ def _plt():
 
 
 def _plot_fe_face(ax, geometry, coordinates, displacement, top):
-    """|Δu| of the FE soil's front face (y = its smallest y), mm, filled contours over the
+    """``|Δu|`` of the FE soil's front face (y = its smallest y), mm, filled contours over the
     face's nodes with the zone's trench left empty, on the colour scale 0 … ``top``."""
     from matplotlib.tri import Triangulation
     face = np.isclose(coordinates[:, 1], coordinates[:, 1].min(), rtol=0.0, atol=1e-9 * geometry.width)
@@ -712,9 +712,9 @@ def plot_load_settlement(curves, path, title):
 
 
 def plot_displacement_section(case, model, before, after, path, soil=None):
-    """The grains of the slice seen along y (an x–z section), coloured by |Δx| during the
+    """The grains of the slice seen along y (an x–z section), coloured by ``|Δx|`` during the
     loading, and (coupled, ``soil`` = FE node coordinates and Δu) the FE soil's front face
-    coloured by |Δu| on the same scale; the zone's outline and the footing drawn on top."""
+    coloured by ``|Δu|`` on the same scale; the zone's outline and the footing drawn on top."""
     plt = _plt()
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle, Rectangle

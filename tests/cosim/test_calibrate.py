@@ -186,6 +186,7 @@ def _triaxial_case(tmp_path):
     return tmp_path / "tx.toml"
 
 
+@pytest.mark.slow  # the search itself: the surrogate tests above; this is the end-to-end variant
 def test_calibrating_against_a_triaxial_target(tmp_path):
     """The same search on the miniature triaxial cell (6 % axial strain): the target is the
     cell's own φ_peak at μ = 0.25; the search confirms it, and the written case reruns to it."""

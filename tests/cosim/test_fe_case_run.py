@@ -103,6 +103,7 @@ def test_a_state_that_stops_being_finite_ends_the_run(tmp_path):
         fe_app.check_finite(solver)
 
 
+@pytest.mark.slow  # resume: test_resume_matches_an_uninterrupted_run; 2 ranks: test_two_ranks_give_the_one_rank_history
 def test_a_checkpoint_resumes_on_another_rank_count_and_partition(tmp_path):
     """Written by 2 ranks, continued by 1, then by 3 (each from the newest complete set of
     checkpoint files, every node found by its mesh-input index): the history is the one of an

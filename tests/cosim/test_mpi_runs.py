@@ -54,6 +54,9 @@ SHORT_SHEAR = ["--set", "direct_shear.shear_distance=2e-4", "--set", "direct_she
                "--set", "direct_shear.rows=10"]
 
 
+@pytest.mark.slow  # each kind under mpirun, bit for bit against one rank, is in the default suite: dem in
+# test_dem_distributed_case.py, fe in test_fe_case_run.py, coupled in tests/coupling, the lab tests in tests/shear
+# and tests/triaxial; rank 0 alone speaking in test_cli.py
 @pytest.mark.parametrize("kind", sorted(SHORT_RUNS) + ["direct_shear"])
 def test_every_kind_runs_under_mpirun(kind, tmp_path):
     if kind == "direct_shear":

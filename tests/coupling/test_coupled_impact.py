@@ -94,7 +94,7 @@ def test_momentum_of_fe_dem_and_impulse_in_transit_is_conserved_to_round_off(one
         assert drift.max() < 1e-12 * p0, axis
 
 
-@pytest.mark.parametrize("ranks", [2, 3])
+@pytest.mark.parametrize("ranks", [2, pytest.param(3, marks=pytest.mark.slow)])
 def test_more_ranks_with_the_fe_on_each_give_the_one_rank_run_bit_for_bit(one_rank, tmp_path, ranks):
     """The DEM spread over the ranks, the FE replicated (the default): FE and DEM states, the
     interface force and motion are the 1-rank run's to the last bit; the books close."""
@@ -148,7 +148,7 @@ def assert_same_rows(s, reference):
         np.testing.assert_allclose(s[key], reference[key], rtol=1e-8, atol=atol, err_msg=key)
 
 
-@pytest.mark.parametrize("fe_partition", ["replicated", "distributed"])
+@pytest.mark.parametrize("fe_partition", ["replicated", pytest.param("distributed", marks=pytest.mark.slow)])
 def test_a_two_rank_checkpoint_resumes_on_one_rank(one_rank, tmp_path, fe_partition):
     """Part of the run on 2 ranks, the rest on 1 (the DEM from its rank-count-free checkpoint),
     the checkpoint on an output row with grains in contact. With the FE replicated its
@@ -181,7 +181,8 @@ def test_subcycling_one_or_four_dem_steps_per_fe_step_agree(tmp_path):
         assert np.interp(t_end, s4["time"], s4[key]) == pytest.approx(expected, rel=1e-2), key
 
 
-@pytest.mark.parametrize("smoothing_time, stop", [(0.0, "between rows"), (2e-5, "on a row")])
+@pytest.mark.parametrize("smoothing_time, stop", [pytest.param(0.0, "between rows", marks=pytest.mark.slow),
+                                                  (2e-5, "on a row")])
 def test_a_stopped_run_resumes_bit_for_bit(tmp_path, smoothing_time, stop):
     """Run part, resume to the end: the CSV rows, the FE state, the grains with their
     contact history and the impulse in transit (with the smoothing on, the part held back
@@ -219,6 +220,7 @@ def test_resume_without_a_coupled_checkpoint_is_bad_input(tmp_path):
     assert res.returncode == 2 and "no coupled checkpoint" in res.stderr
 
 
+@pytest.mark.slow  # a SIGKILL between checkpoints; the resume itself: test_a_stopped_run_resumes_bit_for_bit
 def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     """SIGKILL in the middle of a run that checkpoints every 0.5 s: --resume goes on from
     the last checkpoint, and the CSV continues without a repeated or a missing instant."""
@@ -247,6 +249,7 @@ def test_a_killed_run_resumes_from_its_last_checkpoint(tmp_path):
     assert np.all(steps == steps[0])
 
 
+@pytest.mark.slow  # subcycling invariance: test_subcycling_one_or_four_dem_steps_per_fe_step_agree
 def test_the_shipped_subcycling_case_gives_the_same_answer_with_1_and_20_substeps(tmp_path):
     """runs/coupled_soft_plate_subcycling.toml: the plate's stable step is > 10 DEM steps.
     1 and 20 DEM steps per FE step transfer the same momentum to the plate and move it

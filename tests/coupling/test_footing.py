@@ -288,6 +288,7 @@ def test_a_killed_coupled_loading_resumes_to_the_same_rows(runs, tmp_path):
     assert_resumed_to(runs, cosim("run", str(CASE), "--out", str(out), *sets, "--resume"), out)
 
 
+@pytest.mark.slow  # the 1-rank kill and resume: test_a_killed_coupled_loading_resumes_to_the_same_rows
 def test_a_killed_two_rank_loading_resumes_to_the_same_rows(two_ranks, tmp_path):
     """The same under mpirun -n 2 (DEM over both ranks, the FE soil on each), killed and
     resumed on 2 ranks: the rows of the uninterrupted 2-rank run, to the last digit."""

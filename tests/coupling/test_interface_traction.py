@@ -76,6 +76,7 @@ def test_smoothing_conserves_the_impulse_and_filters_white_noise_as_a_first_orde
     assert settled.var() == pytest.approx(sigma**2 * beta / (2 - beta), rel=0.05)
 
 
+@pytest.mark.slow  # the weight at rest within 1 %: tests/coupling/test_footing.py; the nodal split: the tests above
 def test_the_interface_carries_the_grains_weight_at_rest_and_weight_plus_load_when_pressed(tmp_path):
     """studies/interface_traction.py on one coarse mesh and a thin layer: at rest (unbalanced
     force ratio < 1e-3) the total interface force is the grains' weight, pressed by the servo

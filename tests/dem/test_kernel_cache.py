@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import de_domain
 
 PROBE = """
@@ -83,6 +85,7 @@ print(hashlib.sha1(state.tobytes()).hexdigest(), sum(advance.stats.cache_hits.va
 """
 
 
+@pytest.mark.slow  # compiles every DEM kernel into an empty cache (~1 min)
 def test_a_process_that_compiles_runs_the_same_bits_as_one_that_loads_the_cache(tmp_path):
     """300 spheres settling on a facet floor inside plane walls, 6,000 steps: the process
     that compiles every kernel and the next one, which loads them, end bit-identical (with

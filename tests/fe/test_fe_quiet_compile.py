@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from fe_domain.jit import MESSAGE, VERBOSE_ENV
 
 REPO = Path(__file__).resolve().parents[2]
@@ -46,6 +48,7 @@ def _run(tmp_path):
     return proc, output
 
 
+@pytest.mark.slow  # an FFCx build in an empty cache (~9 s)
 def test_first_build_prints_one_short_line_and_no_compiler_commands(tmp_path):
     proc, output = _run(tmp_path)
     compiled = list((tmp_path / "cache" / "fenics").glob("libffcx_*.so"))

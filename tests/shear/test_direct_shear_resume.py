@@ -34,11 +34,10 @@ def from_file(case, specimen):
     return path
 
 
-def test_killed_shear_run_resumes_to_the_same_result(tmp_path):
+def test_killed_shear_run_resumes_to_the_same_result(tmp_path, mini_dense_run):
+    _, _, reference = mini_dense_run  # the uninterrupted run (tests/shear/conftest.py)
     case = tmp_path / "mini.toml"
-    case.write_text(MINI.format(name="mini", e=0.70, mu=0.3))
-    reference = tmp_path / "reference"
-    assert cosim("run", str(case), "--out", str(reference)).returncode == 0
+    shutil.copy(reference.parent / "mini_dense.toml", case)
     # the same specimen from its file, sheared in a process that is killed mid-way
     specimen = tmp_path / "specimen.npz"
     shutil.copy(reference / "specimen.npz", specimen)

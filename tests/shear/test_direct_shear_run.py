@@ -78,8 +78,8 @@ def _run(tmp_path_factory, name, e, mu):
 
 
 @pytest.fixture(scope="module")
-def dense(tmp_path_factory):
-    return _run(tmp_path_factory, "mini_dense", 0.70, 0.05)
+def dense(mini_dense_run):
+    return mini_dense_run  # tests/shear/conftest.py: shared with the resume test
 
 
 def test_generation_hits_the_target_void_ratio(dense):
@@ -170,6 +170,7 @@ def test_the_plate_shear_force_and_the_servo_used_are_reported(dense):
     assert summary["plate_contact_stiffness_mean"] > 0 and np.all(series["plate_contact_stiffness"][after] > 0)
 
 
+@pytest.mark.slow  # the default servo is checked in every run; this is the YADE script's law
 def test_the_fixed_gain_servo_of_the_yade_script_lags_as_its_law_says(tmp_path):
     """servo = 'fixed_gain': v = g (σ − σ_n)/σ_n (thesis App. D). Below its stability bound
     g < 2 σ_n A_c / (k Δt_servo) the plate follows the specimen's volume change with the

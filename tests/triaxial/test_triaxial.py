@@ -179,6 +179,7 @@ def test_bad_input_is_named(tmp_path, override, key):
     assert err.value.key == key
 
 
+@pytest.mark.slow  # the envelope fit itself: the common-tangent test; this is the run over three pressures
 def test_a_series_over_the_cell_pressure_fits_the_envelope(tmp_path):
     """`cosim series` on a triaxial case: one specimen, σ₃ = 50 and 150 kPa, the envelope
     tangent to the two peak circles."""

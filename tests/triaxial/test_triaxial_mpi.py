@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).parents[2]
 COSIM = Path(sys.executable).parent / "cosim"
@@ -28,6 +29,7 @@ def compress(case, out, ranks):
     return {k: [r[k] for r in rows] for k in rows[0]}, done.stdout
 
 
+@pytest.mark.slow  # a lab test under mpirun, bit for bit: tests/shear/test_direct_shear_mpi.py
 def test_two_ranks_compress_the_one_rank_specimen_bit_for_bit(tmp_path):
     spec = importlib.util.spec_from_file_location("tx", ROOT / "tests" / "triaxial" / "test_triaxial.py")
     module = importlib.util.module_from_spec(spec)
