@@ -7,7 +7,7 @@ resume with another rank count."""
 import numba
 import numpy as np
 import pytest
-from conftest import box_gas
+from dem_scenes import box_gas
 from mpi4py import MPI
 from test_fused_kernels import loose_pile, split_box_pile
 
