@@ -48,8 +48,8 @@ def _parser():
     series.add_argument("cases", metavar="CASE.toml", nargs="+", help="direct_shear or triaxial case files")
     series.add_argument("--stresses", type=float, nargs="+", default=[50e3, 100e3, 200e3], metavar="PA",
                         help="normal stresses or cell pressures [Pa] (default 50e3 100e3 200e3)")
-    series.add_argument("--out", metavar="DIR", default="runs/out/direct_shear_series",
-                        help="output folder (default runs/out/direct_shear_series, also for triaxial cases)")
+    series.add_argument("--out", metavar="DIR",
+                        help="output folder (default runs/out/<kind>_series, the kind of the first case)")
     series.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override one value in every case; repeatable")
 
@@ -97,8 +97,8 @@ def main(argv=None):
         if args.command == "schema":
             return _schema()
         if args.command == "series":
-            jobs = _guarded(comm, lambda: _agreed(comm, lambda: _series_jobs(args)), passes=CaseError)
-            return _guarded(comm, lambda: _series(jobs, Path(args.out)))
+            jobs, out_root = _guarded(comm, lambda: _agreed(comm, lambda: _series_jobs(args)), passes=CaseError)
+            return _guarded(comm, lambda: _series(jobs, out_root))
         if args.command == "elastic":
             return _elastic(args)
         if args.command == "calibrate":
@@ -159,11 +159,17 @@ def _run(app, prepared):
 
 
 def _series_jobs(args):
+    """(the validated jobs of the series, its output folder); collective through ``_agreed``."""
+    from cosim.case import load_case
     from cosim.lab.series import validate_series
     for stress in args.stresses:
         if not (math.isfinite(stress) and stress > 0):
             raise CaseError("<command line>", "--stresses", stress, "normal stresses must be finite and > 0 Pa")
-    return validate_series(args.cases, args.stresses, Path(args.out), args.overrides)
+    if args.out:
+        out_root = Path(args.out)
+    else:  # runs/out/direct_shear_series or runs/out/triaxial_series
+        out_root = DEFAULT_OUT_ROOT / f"{load_case(args.cases[0], list(args.overrides))[0].case.kind}_series"
+    return validate_series(args.cases, args.stresses, out_root, args.overrides), out_root
 
 
 def _series(jobs, out_root):

@@ -70,3 +70,15 @@ def test_schema_lists_units():
     res = cosim("schema")
     assert res.returncode == 0
     assert "dem.materials.density" in res.stdout and "[kg/m^3]" in res.stdout
+
+
+@pytest.mark.parametrize("case, folder", [("direct_shear_small.toml", "direct_shear_series"),
+                                          ("triaxial_small.toml", "triaxial_series")])
+def test_a_series_goes_to_a_folder_named_by_its_kind_unless_told(case, folder):
+    """Validation only (no run): the jobs of a series land under runs/out/<kind>_series."""
+    from cosim.cli import _parser, _series_jobs
+    jobs, out_root = _series_jobs(_parser().parse_args(["series", str(ROOT / "runs" / case), "--stresses", "5e4"]))
+    assert out_root == Path("runs/out") / folder
+    assert all(prepared.out_dir.is_relative_to(out_root) for _, _, prepared in jobs)
+    _, told = _series_jobs(_parser().parse_args(["series", str(ROOT / "runs" / case), "--out", "elsewhere"]))
+    assert told == Path("elsewhere")
