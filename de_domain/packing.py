@@ -164,11 +164,13 @@ def load_packing(path):
     """Read a packing written by :func:`save_packing`, YADE/ESyS text, or a LIGGGHTS dump.
 
     Returns ``(positions (n, 3), radii (n,))``. Raises ValueError naming the file and
-    what is wrong (not UTF-8, no spheres, arrays of different lengths, missing columns,
+    what is wrong (an empty file, not UTF-8, no spheres, arrays of different lengths, missing columns,
     values that are not finite, radii that are not positive, with the first bad sphere).
     """
     path = Path(path)
     if path.suffix == ".npz":
+        if path.stat().st_size == 0:
+            raise ValueError(f"{path}: the file is empty (0 bytes); a .npz packing holds 'positions' and 'radii'")
         with np.load(path) as data:
             missing = [k for k in ("positions", "radii") if k not in data]
             if missing:

@@ -77,3 +77,10 @@ def test_reads_liggghts_dump(tmp_path):
     pos2, r2 = load_packing(dump)
     np.testing.assert_allclose(pos2, pos, rtol=1e-8)
     np.testing.assert_allclose(r2, r, rtol=1e-8)
+
+
+def test_an_empty_npz_packing_is_a_message_naming_the_file(tmp_path):
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    with pytest.raises(ValueError, match=r"empty\.npz: the file is empty \(0 bytes\)"):
+        load_packing(empty)
