@@ -46,7 +46,7 @@ $(STAMP): pyproject.toml Makefile
 	$(PY) -c "import numpy, numba, mpi4py, dolfinx; assert numpy.__file__.startswith('/usr/lib/python3/'), 'a second numpy shadows Debian numpy: ' + numpy.__file__"
 	@touch $(STAMP)
 
-# the flagship: a strip footing on a DEM zone embedded in an FE soil block, then its all-DEM
+# the small footing demo: a strip footing on a DEM zone embedded in an FE soil block, then its all-DEM
 # reference from the same case, and their comparison (runs/out/footing_small/comparison.png)
 demo: setup
 	$(VENV)/bin/cosim run $(DEMO_CASE)

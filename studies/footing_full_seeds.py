@@ -1,4 +1,4 @@
-"""The full-size flagship, coupled against all-DEM over several packings (issue 15 item 4;
+"""The full-size footing (runs/footing_full.toml), coupled against all-DEM over several packings (issue 15 item 4;
 docs/design.md §7.4).
 
 Runs ``runs/footing_full.toml`` (B = 40 mm = 16 d50, ~31,000 grains in the DEM zone of the
