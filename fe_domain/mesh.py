@@ -238,6 +238,51 @@ def load_mesh(path: str | Path, mesh_size: float | None = None, comm: MPI.Comm =
     raise ValueError(f"mesh file {str(path)!r}: suffix {suffix!r} not one of '.geo', '.msh'")
 
 
+@dataclass(frozen=True)
+class VolumeCells:
+    """Every tetrahedron of a gmsh model with the physical volume it belongs to (serial arrays,
+    gmsh's node order): ``points`` (n, 3), ``cells`` (c, 4) node indices, ``volume`` (c,) the
+    physical-group name of each cell's volume."""
+    points: np.ndarray
+    cells: np.ndarray
+    volume: np.ndarray
+
+
+def volume_cells(path: str | Path, mesh_size: float | None = None,
+                 parameters: dict[str, float] | None = None) -> VolumeCells:
+    """The tetrahedra of a ``.geo`` source (meshed with ``mesh_size`` and ``parameters``, as
+    :func:`load_geo`) or a ``.msh`` file, labelled by physical volume (serial, one process).
+    A cell in no physical volume is dropped, as DOLFINx drops it."""
+    path = Path(path)
+    if path.suffix != ".msh" and not (mesh_size and mesh_size > 0):
+        raise ValueError(f"mesh_size = {mesh_size!r}: a .geo source needs a mesh size > 0 (m)")
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        if path.suffix == ".msh":
+            gmsh.merge(str(_resolve(path, ".msh")))
+        else:
+            _generate(_resolve(path, ".geo"), mesh_size, parameters)
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        index = np.zeros(int(tags.max()) + 1, np.int64)
+        index[tags.astype(np.int64)] = np.arange(len(tags))
+        cells, names = [], []
+        for dim, group in gmsh.model.getPhysicalGroups(3):
+            name = gmsh.model.getPhysicalName(dim, group)
+            for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, group):
+                types, _, nodes = gmsh.model.mesh.getElements(dim, entity)
+                for kind, element_nodes in zip(types, nodes, strict=True):
+                    if kind == 4:  # 4-node tetrahedron
+                        tets = index[np.asarray(element_nodes, np.int64)].reshape(-1, 4)
+                        cells.append(tets)
+                        names.append(np.full(len(tets), name, dtype=object))
+    finally:
+        gmsh.finalize()
+    if not cells:
+        raise MeshError(f"{path}: no tetrahedra in a physical volume")
+    return VolumeCells(coordinates.reshape(-1, 3), np.vstack(cells), np.concatenate(names))
+
+
 def write_msh(geo_path: str | Path, msh_path: str | Path, mesh_size: float,
               parameters: dict[str, float] | None = None) -> Path:
     """Mesh a ``.geo`` source and save it as ``.msh`` (serial; for reuse or inspection)."""

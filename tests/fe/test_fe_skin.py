@@ -81,3 +81,32 @@ def test_a_non_conforming_mesh_is_refused():
     cells = np.array([[0, 1, 2, 3], [0, 2, 1, 4], [0, 1, 2, 5]])
     with pytest.raises(ValueError, match="not conforming"):
         zone_skin(points, cells, np.array([1, 2, 2]), zone={1}, structure={2})
+
+
+ZONE_IN_BLOCK = """// a unit block with a zone of width w through its whole y, from its top down to z = 0.5
+SetFactory("OpenCASCADE");
+DefineConstant[ w = {0.5, Min 0.05, Max 0.9, Name "Parameters/w"} ];
+Box(1) = {0, 0, 0, 1, 1, 1};
+Box(2) = {0.5 - w / 2, 0, 0.5, w, 1, 0.5};
+BooleanFragments{ Volume{1}; Delete; }{ Volume{2}; Delete; }
+e = 1e-6;
+zone() = Volume In BoundingBox{0.5 - w / 2 - e, -e, 0.5 - e, 0.5 + w / 2 + e, 1 + e, 1 + e};
+soil() = Volume{:};
+soil() -= zone();
+Physical Volume("zone") = {zone()};
+Physical Volume("soil") = {soil()};
+"""
+
+
+@pytest.mark.parametrize("width", [0.5, 0.3])
+def test_a_gmsh_model_with_named_volumes_gives_the_interface_of_its_zone(tmp_path, width):
+    """From a .geo with a DefineConstant overridden by the caller, as a case file would: the
+    interface of the zone named "zone" against the volume named "soil" is its bottom and sides."""
+    from fe_domain.mesh import volume_cells
+    source = tmp_path / "zone_in_block.geo"
+    source.write_text(ZONE_IN_BLOCK)
+    model = volume_cells(source, mesh_size=0.2, parameters={"w": width})
+    assert set(model.volume) == {"zone", "soil"}
+    skin = zone_skin(model.points, model.cells, model.volume, zone={"zone"}, structure={"soil"})
+    assert triangle_areas(model.points, skin.interface).sum() == pytest.approx(width + 2 * 0.5, rel=1e-12)
+    assert triangle_areas(model.points, skin.free).sum() == pytest.approx(width + 2 * 0.5 * width, rel=1e-12)
