@@ -16,7 +16,6 @@ import json
 import os
 import re
 import subprocess
-import sys
 
 OPENMPI_DEFAULTS = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
                     "OMPI_MCA_rmaps_base_oversubscribe": "1"}
@@ -101,7 +100,3 @@ def run_json(cmd, prefix="", **kwargs):
         return parse_json(done.stdout, prefix)
     except ValueError as exc:
         raise WorkerFailed(f"{exc}\n{failure_report(cmd, done.returncode, done.stdout, done.stderr)}") from None
-
-
-if __name__ == "__main__":  # pragma: no cover - a quick manual check
-    print(parse_json(sys.stdin.read()))

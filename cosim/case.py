@@ -792,11 +792,6 @@ def physical_groups(mesh_file):
     return {m.group(3): int(m.group(1)) for m in re.finditer(r'(\d+)\s+(\d+)\s+"([^"]+)"', block.group(1))}
 
 
-def geometry_parameters(geo_file):
-    """Names of the ``DefineConstant`` parameters (ONELAB ``Parameters/<name>``) of a .geo source."""
-    return set(re.findall(r'Name\s+"Parameters/([^"]+)"', Path(geo_file).read_text(errors="replace")))
-
-
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
