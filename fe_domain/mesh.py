@@ -88,33 +88,43 @@ class MeshSizeTooLarge(MeshError):
 
 
 def _distributed(comm: MPI.Comm, rank: int, build) -> TaggedMesh:
-    """Build a gmsh model with ``build()`` on ``rank`` and distribute it into a TaggedMesh.
+    """Build a gmsh model with ``build()`` on ``rank`` and distribute it into a TaggedMesh."""
+    return built_on_rank(comm, rank, build)[0]
+
+
+def built_on_rank(comm: MPI.Comm, rank: int, build) -> tuple[TaggedMesh | None, object]:
+    """Run ``build()`` on ``rank`` in a gmsh session and distribute the gmsh model it leaves
+    current; returns (TaggedMesh, payload) on every rank, where ``build`` returns a payload
+    (broadcast) or None. A payload with ``has_mesh`` False distributes no mesh (None).
 
     A failure on ``rank`` (a syntax error, a file that is not a mesh, no tetrahedra, no
     volume group) is broadcast and raised as :class:`MeshError` on every rank, so no rank
     is left waiting for a mesh that will not come."""
-    failure, groups = None, None
+    failure, groups, payload = None, None, None
     if comm.rank == rank:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         try:
-            build()
+            payload = build()
             groups = {gmsh.model.getPhysicalName(dim, tag): (dim, tag)
                       for dim, tag in gmsh.model.getPhysicalGroups()}
-            failure = _unusable(groups)
+            if getattr(payload, "has_mesh", True):
+                failure = _unusable(groups)
         except MeshError as exc:  # ours, raised as it is on every rank
             failure = exc
         except Exception as exc:  # gmsh reports every error as a bare Exception
             failure = f"gmsh: {exc}"
-    failure, groups = comm.bcast((failure, groups), root=rank)
+    failure, groups, payload = comm.bcast((failure, groups, payload), root=rank)
     try:
         if isinstance(failure, MeshError):
             raise failure
         if failure:
             raise MeshError(failure)
+        if not getattr(payload, "has_mesh", True):
+            return None, payload
         with _cells_partitioned_by(reproducible_partitioner):
             mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, rank, gdim=3)
-        return TaggedMesh(mesh, cell_tags, facet_tags, groups)
+        return TaggedMesh(mesh, cell_tags, facet_tags, groups), payload
     finally:
         if comm.rank == rank:
             gmsh.finalize()
@@ -263,23 +273,30 @@ def volume_cells(path: str | Path, mesh_size: float | None = None,
             gmsh.merge(str(_resolve(path, ".msh")))
         else:
             _generate(_resolve(path, ".geo"), mesh_size, parameters)
-        tags, coordinates, _ = gmsh.model.mesh.getNodes()
-        index = np.zeros(int(tags.max()) + 1, np.int64)
-        index[tags.astype(np.int64)] = np.arange(len(tags))
-        cells, names = [], []
-        for dim, group in gmsh.model.getPhysicalGroups(3):
-            name = gmsh.model.getPhysicalName(dim, group)
-            for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, group):
-                types, _, nodes = gmsh.model.mesh.getElements(dim, entity)
-                for kind, element_nodes in zip(types, nodes, strict=True):
-                    if kind == 4:  # 4-node tetrahedron
-                        tets = index[np.asarray(element_nodes, np.int64)].reshape(-1, 4)
-                        cells.append(tets)
-                        names.append(np.full(len(tets), name, dtype=object))
+        labelled = labelled_cells()
     finally:
         gmsh.finalize()
-    if not cells:
+    if len(labelled.cells) == 0:
         raise MeshError(f"{path}: no tetrahedra in a physical volume")
+    return labelled
+
+
+def labelled_cells() -> VolumeCells:
+    """The tetrahedra of the current (meshed) gmsh model labelled by physical volume, with every
+    node of the model (gmsh's order)."""
+    tags, coordinates, _ = gmsh.model.mesh.getNodes()
+    index = np.zeros(int(tags.max()) + 1 if len(tags) else 1, np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    cells, names = [np.zeros((0, 4), np.int64)], [np.zeros(0, object)]
+    for dim, group in gmsh.model.getPhysicalGroups(3):
+        name = gmsh.model.getPhysicalName(dim, group)
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, group):
+            types, _, nodes = gmsh.model.mesh.getElements(dim, entity)
+            for kind, element_nodes in zip(types, nodes, strict=True):
+                if kind == 4:  # 4-node tetrahedron
+                    tets = index[np.asarray(element_nodes, np.int64)].reshape(-1, 4)
+                    cells.append(tets)
+                    names.append(np.full(len(tets), name, dtype=object))
     return VolumeCells(coordinates.reshape(-1, 3), np.vstack(cells), np.concatenate(names))
 
 
