@@ -93,7 +93,9 @@ def random_cloud(radii, box_min, box_max, seed, max_attempts=200):
         raise ValueError("the box is smaller than the largest sphere")
     rng = np.random.default_rng(seed)
     trials = rng.random((len(radii), max_attempts, 3))
-    pos, placed = _insert_spheres(radii, lo, hi, trials)
+    span = (hi - lo)[None, None, :] - 2.0 * radii[:, None, None]
+    candidates = lo[None, None, :] + radii[:, None, None] + trials * span
+    pos, placed = insert_spheres(radii, candidates, lo, hi)
     if placed < len(radii):
         solid = 4 / 3 * np.pi * np.sum(radii ** 3) / np.prod(hi - lo)
         raise ValueError(f"could place only {placed} of {len(radii)} spheres without overlap "
@@ -102,8 +104,11 @@ def random_cloud(radii, box_min, box_max, seed, max_attempts=200):
 
 
 @nb.njit(cache=True)
-def _insert_spheres(radii, lo, hi, trials):
-    """Random sequential addition with a uniform cell grid (cell = largest diameter)."""
+def insert_spheres(radii, candidates, lo, hi):
+    """Random sequential addition: sphere i (``radii`` largest first) goes to the first of its
+    ``candidates[i]`` centres (inside the box [lo, hi]) that overlaps no sphere placed before,
+    checked in a uniform cell grid (cell = largest diameter). Stops at the first sphere none
+    of whose candidates fits; returns (positions, number placed)."""
     n = radii.shape[0]
     cell = 2.0 * radii[0]
     dims = np.empty(3, np.int64)
@@ -116,12 +121,12 @@ def _insert_spheres(radii, lo, hi, trials):
     for i in range(n):
         r = radii[i]
         ok = False
-        for t in range(trials.shape[1]):
+        for t in range(candidates.shape[1]):
             c = np.empty(3)
             ic = np.empty(3, np.int64)
             for a in range(3):
-                c[a] = lo[a] + r + trials[i, t, a] * (hi[a] - lo[a] - 2.0 * r)
-                ic[a] = min(dims[a] - 1, int((c[a] - lo[a]) / (hi[a] - lo[a]) * dims[a]))
+                c[a] = candidates[i, t, a]
+                ic[a] = max(0, min(dims[a] - 1, int((c[a] - lo[a]) / (hi[a] - lo[a]) * dims[a])))
             ok = True
             for dx in range(-1, 2):
                 for dy in range(-1, 2):

@@ -1,0 +1,280 @@
+"""Filling a volume of any shape with grains by radius expansion (docs/design.md §3.2).
+
+The volume is given by its tetrahedra and closed by triangle walls (its faces: the FE
+interface, slice walls, rigid bodies, and a *lid* over what will be a free surface). As in
+the box method (:func:`de_domain.deposition.radius_expansion`):
+
+1. the number of grains is the one that gives the target void ratio e in the volume V,
+   V_s = V / (1 + e), drawn from the sieve curve by the caller;
+2. the grains are placed at random, shrunk to a small solid fraction, by random sequential
+   addition at points drawn uniformly in the tetrahedra (a tetrahedron chosen with
+   probability ∝ its volume, a point in it by the folded-cube barycentric draw of Rocchini
+   & Cignoni, "Generating random points in a tetrahedron", J. Graphics Tools 5, 2000), at
+   least a radius from every wall;
+3. the radii grow to full size in steps, the walls holding them (gravity off), the grains
+   come to rest without gravity, then with it;
+4. the lid is moved out along its normal until it carries at most ``release_stress``, then
+   removed, and the grains come to rest under gravity with a free surface.
+
+The densities are scaled by ``density_scale`` with the gravity divided by it (real weights,
+a larger stable step) as in :mod:`de_domain.deposition`; the caller's model uses the real
+densities.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from de_domain.deposition import GenerationSettings, _critical_dt_all, _materials, _start_friction
+from de_domain.packing import insert_spheres
+
+
+@dataclass(frozen=True)
+class ContainerWall:
+    """Triangles (m, 3, 3) closing the volume, of one material (de_domain Material, real
+    density); ``lid``: removed at the end, leaving a free surface."""
+    triangles: np.ndarray
+    material: object
+    lid: bool = False
+
+
+@dataclass
+class FilledZone:
+    """The grains (centres, radii), the void ratio (V − V_s) / V_s over the volume (V_s of the
+    grains whose centre is in it: below the lid's plane once the lid is gone), the steps taken
+    and the log."""
+    positions: np.ndarray
+    radii: np.ndarray
+    void_ratio: float
+    steps: int
+    log: list = field(default_factory=list)
+
+
+def points_in_tets(tets, count, rng):
+    """``count`` points uniform in the union of the tetrahedra (k, 4, 3) (module docstring)."""
+    a, b, c, d = (tets[:, k] for k in range(4))
+    volume = np.abs(np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a))
+    which = rng.choice(len(tets), size=count, p=volume / volume.sum())
+    s, t, u = rng.random((3, count))
+    fold = s + t > 1.0                                    # fold the cube into the tetrahedron
+    s[fold], t[fold] = 1.0 - s[fold], 1.0 - t[fold]
+    over = t + u > 1.0
+    t_old = t.copy()
+    t[over], u[over] = 1.0 - u[over], 1.0 - s[over] - t_old[over]
+    under = ~over & (s + t + u > 1.0)
+    s_old = s.copy()
+    s[under], u[under] = 1.0 - t[under] - u[under], s_old[under] + t[under] + u[under] - 1.0
+    w = np.stack([1.0 - s - t - u, s, t, u], axis=1)
+    return np.einsum("nk,nkd->nd", w, tets[which])
+
+
+def tets_volume(tets) -> float:
+    """Σ |det(b − a, c − a, d − a)| / 6 over the tetrahedra (k, 4, 3) (m³)."""
+    a, b, c, d = (tets[:, k] for k in range(4))
+    return float(np.sum(np.abs(np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a))) / 6.0)
+
+
+def thickness(tets, faces, spacing, rng, samples_per_tet=8) -> float:
+    """Twice the largest distance from a point of the volume (random points, ``samples_per_tet``
+    per tetrahedron on average) to its boundary ``faces`` (m, 3, 3) (sampled every ``spacing``):
+    about the diameter of the largest sphere that fits, to within ``spacing``."""
+    from scipy.spatial import cKDTree
+    inside = points_in_tets(tets, samples_per_tet * len(tets), rng)
+    distance, _ = cKDTree(sample_triangles(faces, spacing)).query(inside)
+    return 2.0 * float(distance.max())
+
+
+def sample_triangles(triangles, spacing) -> np.ndarray:
+    """Points on the triangles (m, 3, 3), on a barycentric grid no coarser than ``spacing``
+    along the longest edge of each, vertices included."""
+    triangles = np.asarray(triangles, float)
+    edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max(axis=1)
+    out = []
+    for n in np.unique(np.maximum(1, np.ceil(edges / spacing)).astype(int)):
+        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+        keep = i + j <= n
+        w = np.stack([i[keep], j[keep]], axis=1) / n
+        these = triangles[np.maximum(1, np.ceil(edges / spacing)).astype(int) == n]
+        a = these[:, 0]
+        out.append((a[:, None] + w[None, :, :1] * (these[:, 1] - a)[:, None]
+                    + w[None, :, 1:] * (these[:, 2] - a)[:, None]).reshape(-1, 3))
+    return np.concatenate(out)
+
+
+def facet_mesh(triangles, material):
+    """A FacetMesh of the triangles (m, 3, 3) with coincident corners merged into shared
+    vertices (edges shared by two triangles are one edge for contact)."""
+    from de_domain import FacetMesh
+    corners = np.asarray(triangles, float).reshape(-1, 3)
+    vertices, index = np.unique(corners, axis=0, return_inverse=True)
+    return FacetMesh(vertices, index.reshape(-1, 3), material=material)
+
+
+def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None, attempts=400,
+              increments=40, steps_per_increment=100) -> FilledZone:
+    """Grains of ``diameters`` (largest first or not) filling the tetrahedra ``tets`` inside
+    ``walls`` (:class:`ContainerWall`), by the steps of the module docstring. ``s`` supplies
+    the grain and generation parameters (its box sizes are not used; its ``plate`` material
+    is not used either: each wall has its own). ``comm``: the DEM spread over its ranks
+    (collective). Raises ValueError when the cloud does not fit."""
+    from scipy.spatial import cKDTree
+
+    radii = np.sort(0.5 * np.asarray(diameters, float))[::-1]
+    volume = tets_volume(tets)
+    solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
+    shrink = min(1.0, (s.cloud_solid_fraction * volume / solid) ** (1.0 / 3.0))
+    small = radii * shrink
+    rng = np.random.default_rng(s.seed)
+    candidates = points_in_tets(tets, len(radii) * attempts, rng).reshape(len(radii), attempts, 3)
+    faces = np.concatenate([w.triangles for w in walls])
+    spacing = 0.5 * float(small.min())
+    clearance, _ = cKDTree(sample_triangles(faces, spacing)).query(candidates.reshape(-1, 3))
+    blocked = (clearance.reshape(len(radii), attempts) < small[:, None] + spacing)
+    candidates = _free_first(candidates, blocked)
+    lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
+    pos, placed = insert_spheres(small, candidates, lo, hi)
+    if placed < len(radii):
+        raise ValueError(f"could place only {placed} of {len(radii)} shrunk grains in the zone (solid fraction "
+                         f"{s.cloud_solid_fraction}): the zone is too thin for its grains, or the target e too low")
+    materials = _container_materials(s, walls)
+    dt = s.safety_factor * _critical_dt_all(s, diameters)
+    friction = _start_friction(s)
+    vel, angvel = np.zeros_like(pos), np.zeros_like(pos)
+    steps, messages = 0, []
+
+    def say(text):
+        messages.append(text)
+        if log is not None:
+            log(text)
+
+    def engine_for(pos, radii_now, vel, angvel, gravity, with_lid):
+        from de_domain import Engine, Particles
+        mats = materials(friction)
+        p = Particles.from_spheres(pos, radii_now, np.zeros(len(radii_now), np.int32), mats, velocities=vel)
+        p.angvel[:] = angvel
+        facets = [facet_mesh(w.triangles, 1 + k)
+                  for k, w in enumerate(walls) if with_lid or not w.lid]
+        return Engine(p, mats, facets=facets, contact_law=s.contact_law,
+                      gravity=tuple(np.asarray(gravity, float) / s.density_scale), dt=dt,
+                      safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm)
+
+    for k in range(1, increments + 1):
+        engine = engine_for(pos, radii * (shrink + (1.0 - shrink) * k / increments), vel, angvel, (0, 0, 0), True)
+        engine.run(steps_per_increment)
+        steps += steps_per_increment
+        pos, vel, angvel = _motion(engine)
+    lid = [w for w in walls if w.lid]
+    lid_normal, lid_area = _outward(lid, tets.reshape(-1, 3).mean(axis=0))
+    for label, gravity in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
+        engine = engine_for(pos, radii, vel, angvel, gravity, True)
+        steps += _rest(engine, s)
+        say(f"zone fill ({label}): unbalanced force {_unbalanced(engine):.3g}, lid stress "
+            f"{_lid_stress(engine, walls, lid_normal, lid_area):.3g} Pa")
+        pos, vel, angvel = _motion(engine)
+    lift = 0.0  # how far the lid moved out along its normal (m)
+    if lid and s.release_stress is not None:
+        engine = engine_for(pos, radii, vel, angvel, s.gravity, True)
+        chunk = max(1, s.check_every // 5)
+        speed = 0.1 * s.plate_velocity
+        engine.run(chunk)
+        while _lid_stress(engine, walls, lid_normal, lid_area) > s.release_stress and steps < s.max_steps_per_layer:
+            _set_lid_velocity(engine, walls, speed * lid_normal)
+            engine.run(chunk)
+            steps += chunk
+            lift += speed * engine.dt * chunk
+        _set_lid_velocity(engine, walls, np.zeros(3))
+        steps += _rest(engine, s)
+        say(f"zone fill: lid moved out {lift * 1e3:.3f} mm, where it carries "
+            f"{_lid_stress(engine, walls, lid_normal, lid_area):.3g} Pa (release to <= {s.release_stress:.3g} Pa)")
+        pos, vel, angvel = _motion(engine)
+    engine = engine_for(pos, radii, vel, angvel, s.gravity, False)
+    steps += _rest(engine, s)
+    pos, _, _ = _motion(engine)
+    lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
+    gone = np.any((pos < lo) | (pos > hi + lift + radii.max()), axis=1)
+    if gone.any():
+        raise ValueError(f"{int(gone.sum())} grains left the zone when its lid was removed: the zone's faces "
+                         "do not close it, or the lid could not be lifted to release the packing")
+    inside = np.ones(len(radii), bool)
+    if lid:
+        plane = np.concatenate([w.triangles for w in lid]).reshape(-1, 3) @ lid_normal
+        inside = pos @ lid_normal <= plane.max()
+    solid_inside = float(np.sum(4.0 / 3.0 * np.pi * radii[inside] ** 3))
+    e = (volume - solid_inside) / solid_inside
+    say(f"zone fill: {len(radii)} grains at rest under gravity, e = {e:.4f} over the zone's volume (the "
+        f"{int(inside.sum())} grains with their centre in it; {(volume - solid) / solid:.4f} with all of them), "
+        f"{steps} steps")
+    return FilledZone(pos, radii.copy(), e, steps, messages)
+
+
+def _free_first(candidates, blocked):
+    """Each grain's candidates closer to a wall than its radius (``blocked``) replaced by its
+    first free one (tried again, it is refused again), the others in their order."""
+    if np.any(blocked.all(axis=1)):
+        raise ValueError("no point of the zone is a shrunk grain's radius away from its faces: the zone is too "
+                         "thin for its grains")
+    first = candidates[np.arange(len(candidates)), np.argmin(blocked, axis=1)]
+    return np.ascontiguousarray(np.where(blocked[:, :, None], first[:, None, :], candidates))
+
+
+def _container_materials(s, walls):
+    """friction -> the generation materials: the grains' (scaled as in deposition), then one
+    per wall, its density scaled alike."""
+    from dataclasses import replace
+
+    def materials(friction):
+        sand = _materials(s, friction)[0]
+        return [sand] + [replace(w.material, density=w.material.density * s.density_scale) for w in walls]
+    return materials
+
+
+def _outward(lid, centre):
+    """The lid's mean unit normal (area-weighted), pointing away from the volume's ``centre``,
+    and its area."""
+    if not lid:
+        return np.zeros(3), 0.0
+    t = np.concatenate([w.triangles for w in lid])
+    n = 0.5 * np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n *= np.sign(np.einsum("ij,ij->i", n, t.mean(axis=1) - centre))[:, None]
+    total = n.sum(axis=0)
+    return total / np.linalg.norm(total), float(np.linalg.norm(n, axis=1).sum())
+
+
+def _lid_facets(engine, walls):
+    """The engine's facet meshes of the lid walls (built in the order of ``walls``)."""
+    return [m for m, w in zip(engine.facets, walls, strict=False) if w.lid]
+
+
+def _lid_stress(engine, walls, normal, area):
+    """The grains' push on the lid along its outward normal over its area (Pa); 0 without a lid."""
+    if area == 0.0:
+        return 0.0
+    return float(sum(m.force for m in _lid_facets(engine, walls)) @ normal) / area
+
+
+def _set_lid_velocity(engine, walls, velocity):
+    for m in _lid_facets(engine, walls):
+        m.velocity = velocity
+
+
+def _unbalanced(engine):
+    from de_domain.diagnostics import unbalanced_force_ratio
+    return unbalanced_force_ratio(engine)
+
+
+def _rest(engine, s):
+    """Run until the unbalanced force ratio is below ``s.unbalanced_force`` (checked every
+    ``s.check_every`` steps, at most ``s.max_steps_per_layer``); returns the steps taken."""
+    n = 0
+    while n < s.max_steps_per_layer:
+        engine.run(s.check_every)
+        n += s.check_every
+        if _unbalanced(engine) < s.unbalanced_force:
+            break
+    return n
+
+
+def _motion(engine):
+    grains = engine.global_particles()
+    return grains.pos.copy(), grains.vel.copy(), grains.angvel.copy()
