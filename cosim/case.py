@@ -39,14 +39,16 @@ class CaseInfo(_Section):
     name: str = Field(
         pattern=r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$",
         description="case name: letters, digits, '.', '_', '-' (at most 100, no path); outputs go to runs/out/<name>/")
-    kind: Literal["dem", "direct_shear", "triaxial", "fe", "coupled", "footing"] = Field(
+    kind: Literal["dem", "direct_shear", "triaxial", "fe", "coupled", "footing", "embedded"] = Field(
         description="what to run: 'dem' (a DEM simulation of particles and walls), "
                     "'direct_shear' (specimen generation + the direct shear test, docs/design.md §3), "
                     "'triaxial' (specimen generation + a drained triaxial compression test, docs/design.md §3.10), "
                     "'fe' (the explicit mixed u-p solid on a gmsh mesh, docs/design.md §4), "
                     "'coupled' (FE solid and DEM particles through an interface, docs/design.md §5), "
                     "'footing' (a rigid strip footing pushed into a DEM zone embedded in an FE soil block, "
-                    "or into an all-DEM block of the same size, docs/design.md §7)")
+                    "or into an all-DEM block of the same size, docs/design.md §7), "
+                    "'embedded' (your own gmsh model: FE volumes, DEM zones of any shape, rigid bodies; or its "
+                    "all-DEM twin, docs/guide/own-geometry.md)")
     seed: int = Field(default=12345, ge=0, description="random seed (particle generation) [-]")
 
 
@@ -430,6 +432,77 @@ class ZoneSection(_Section):
         description="DEM steps per FE step [-]; default the largest the FE stability allows")
 
 
+# --------------------------------------------------------------------------- embedded (your own geometry)
+class EmbeddedVolume(_Section):
+    group: str = Field(description="a physical volume of the model")
+    role: Literal["soil", "zone", "structure"] = Field(
+        description="'soil': FE soil in the coupled model, grains in the all-DEM twin; 'zone': grains in both; "
+                    "'structure': FE in both (a lining, a pile, a wall)")
+    E: Optional[float] = Field(default=None, gt=0, description="Young's modulus (soil, structure) [Pa]")
+    nu: Optional[float] = Field(default=None, ge=0, lt=0.5, description="Poisson's ratio (soil, structure) [-]")
+    rho: Optional[float] = Field(
+        default=None, gt=0,
+        description="density [kg/m^3]; a structure needs it; soil: default the bulk density of the zone's packing")
+
+
+class EmbeddedSurface(_Section):
+    group: str = Field(description="a physical surface of the model")
+    fe: Literal["free", "fixed", "roller"] = Field(
+        default="free",
+        description="on its FE faces: 'free', 'fixed' (u = 0), 'roller' (the normal displacement 0; the surface "
+                    "must be a plane normal to x, y or z)")
+    dem: Literal["free", "wall"] = Field(
+        default="free",
+        description="on the zone's faces that lie on it: 'free' (a free surface: the lid of the fill is removed) "
+                    "or 'wall' (a fixed wall of `material`)")
+    material: Optional[str] = Field(default=None, description="material of the DEM wall ([[dem.materials]])")
+
+
+class RigidBody(_Section):
+    name: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,39}$",
+                      description="name of the body (CSV columns <name>_force_x, ...)")
+    surface: str = Field(description="the physical surface it is made of (its triangles are the body's facets)")
+    material: str = Field(description="material of its faces ([[dem.materials]])")
+    velocity: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0],
+                           description="translation velocity during the loading [m/s]")
+    angular_velocity: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0],
+                                   description="rotation rate about `pivot` during the loading [rad/s]")
+    pivot: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0],
+                        description="the point it rotates about and moments are taken about [m]")
+
+
+class EmbeddedSection(_Section):
+    model: Literal["coupled", "dem"] = Field(
+        default="coupled",
+        description="'coupled': grains in the 'zone' volumes, FE in the 'soil' and 'structure' ones; 'dem': the "
+                    "all-DEM twin, every 'soil' volume filled with grains too")
+    mesh: str = Field(description="the gmsh model (.geo or .msh), relative to the case file or in meshes/")
+    mesh_size: Optional[float] = Field(default=None, gt=0, description="largest element size for a .geo [m]")
+    parameters: dict[str, float] = Field(
+        default_factory=dict, description="DefineConstant values of the .geo, e.g. {H = 0.06} [as the .geo]")
+    volumes: list[EmbeddedVolume] = Field(min_length=1, description="[[embedded.volumes]]: a role per volume")
+    surfaces: list[EmbeddedSurface] = Field(
+        default_factory=list, description="[[embedded.surfaces]]: supports of the FE and walls of the DEM")
+    rigid: list[RigidBody] = Field(default_factory=list, description="[[embedded.rigid]]: rigid bodies that move")
+    loading_time: float = Field(gt=0, description="duration of the loading (the rigid bodies' motion) [s]")
+    rows: int = Field(default=50, ge=5, le=100000, description="CSV rows over the loading [-]")
+    sand_material: str = Field(default="sand", description="material name of the grains")
+    interface_material: str = Field(
+        default="sand", description="material of the FE interface as the grains see it ([[dem.materials]])")
+    lid_material: str = Field(
+        default="sand", description="material of the lid over a free surface while the zone is filled")
+    rest_unbalanced_force: float = Field(
+        default=1e-3, gt=0, le=0.1,
+        description="the model is at rest under gravity (before loading) when the unbalanced force ratio is "
+                    "below this [-]")
+    max_rest_time: float = Field(default=0.5, gt=0, description="safety cap on the simulated rest phase [s]")
+    damping: float = Field(default=0.5, ge=0, lt=1, description="local non-viscous damping of the FE volumes [-]")
+    subcycles: Optional[int] = Field(
+        default=None, ge=1, description="DEM steps per FE step [-]; default the largest the FE stability allows")
+    fe_partition: Literal["replicated", "distributed"] = Field(
+        default="replicated", description="under mpirun, as coupling.fe_partition")
+
+
 class TriaxialSection(_Section):
     size: float = Field(gt=0, description="side L of the cubical specimen (height = L) [m]")
     cell_pressure: float = Field(
@@ -489,6 +562,7 @@ class Case(_Section):
     footing: Optional[FootingSection] = None
     soil: Optional[SoilSection] = None
     zone: Optional[ZoneSection] = None
+    embedded: Optional[EmbeddedSection] = None
 
 
 # --------------------------------------------------------------------------- loading
@@ -645,6 +719,7 @@ SECTIONS_OF_KIND = {
     "fe": ("case", "time", "output", "fe"),
     "coupled": ("case", "time", "output", "dem", "fe", "coupling"),
     "footing": ("case", "time", "output", "dem", "specimen", "footing", "soil", "zone"),
+    "embedded": ("case", "time", "output", "dem", "specimen", "embedded"),
 }
 
 # keys a kind (or a choice inside a table) does not use: (table, keys, when, why).
@@ -656,6 +731,13 @@ _UNUSED = [
     ("time", ("dt",), lambda c, s: c.case.kind == "footing",
      "a footing run takes dt = time.safety_factor x the critical step (of the DEM and the FE, with "
      "zone.subcycles DEM steps per FE step), the same for both models"),
+    ("time", ("dt",), lambda c, s: c.case.kind == "embedded",
+     "an embedded run takes dt = time.safety_factor x the critical step of the DEM and the FE"),
+    ("output", ("interval",), lambda c, s: c.case.kind == "embedded",
+     "an embedded run writes embedded.rows CSV rows over the loading; set rows instead"),
+    ("embedded", ("mesh_size", "parameters"), lambda c, s: s.mesh.endswith(".msh"), "a .msh file is already meshed"),
+    ("embedded.volumes[]", ("E", "nu", "rho"), lambda c, s: s.role == "zone", "a zone is made of grains"),
+    ("embedded.surfaces[]", ("material",), lambda c, s: s.dem == "free", "a free surface has no wall"),
     ("output", ("interval",), lambda c, s: c.case.kind == "footing",
      "a footing run writes footing.rows CSV rows over the settlement; set rows instead"),
     ("output", ("interval",), lambda c, s: c.case.kind == "direct_shear",
@@ -733,6 +815,9 @@ def _check_consistency(path, case):
         return
     if case.case.kind == "footing":
         _check_footing(path, case)
+        return
+    if case.case.kind == "embedded":
+        _check_embedded(path, case)
         return
     if case.case.kind == "triaxial":
         _check_triaxial(path, case)
@@ -1107,6 +1192,61 @@ def _check_footing(path, case):
             raise CaseError(path, key, size, f"the DEM zone must be at least {GRAINS_ACROSS} of the largest grains "
                                              f"({d_max * 1e3:.2f} mm after scaling) across: >= "
                                              f"{GRAINS_ACROSS * d_max:.4g} m; or set specimen.truncate_above")
+
+
+def _check_embedded(path, case):
+    """An embedded case: [dem] materials, [specimen] (radius expansion), [embedded] with one role
+    per group; what needs the model itself (groups, dimensions, the zone's thickness) is
+    checked when it is meshed (cosim.apps.embedded.prepare)."""
+    t, dem, sp, em = case.time, case.dem, case.specimen, case.embedded
+    for section in ("dem", "specimen", "embedded"):
+        if getattr(case, section) is None:
+            raise CaseError(path, section, None, f"a case of kind 'embedded' needs a [{section}] section")
+    if t.duration is not None or t.steps is not None:
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
+                        "an embedded run lasts embedded.loading_time after the rest; give only time.safety_factor")
+    if dem.particles is not None or dem.walls:
+        raise CaseError(path, "dem.particles / dem.walls", "present",
+                        "an embedded case takes its grains from [specimen] and its walls from the model; remove them")
+    if sp.source != "generate" or sp.method != "radius_expansion":
+        raise CaseError(path, "specimen.method", sp.method if sp.source == "generate" else sp.source,
+                        "an embedded zone is filled by 'radius_expansion' (source = 'generate'): grains grown "
+                        "inside the zone's faces")
+    keys = [("embedded.sand_material", em.sand_material), ("embedded.interface_material", em.interface_material),
+            ("embedded.lid_material", em.lid_material)]
+    keys += [(f"embedded.surfaces[{i}].material", s.material) for i, s in enumerate(em.surfaces) if s.material]
+    keys += [(f"embedded.rigid[{i}].material", r.material) for i, r in enumerate(em.rigid)]
+    _check_materials(path, dem, keys + _deposition_material(sp))
+    _largest_grain(path, sp)
+    if not em.mesh.endswith((".geo", ".msh")):
+        raise CaseError(path, "embedded.mesh", em.mesh, "a gmsh model: a .geo source or a .msh file")
+    if em.mesh.endswith(".geo") and em.mesh_size is None:
+        raise CaseError(path, "embedded.mesh_size", None, "a .geo model needs a mesh size [m]")
+    seen = {}
+    for key, group in ([(f"embedded.volumes[{i}].group", v.group) for i, v in enumerate(em.volumes)]
+                       + [(f"embedded.surfaces[{i}].group", s.group) for i, s in enumerate(em.surfaces)]
+                       + [(f"embedded.rigid[{i}].surface", r.surface) for i, r in enumerate(em.rigid)]):
+        if group in seen:
+            raise CaseError(path, key, group, f"this group already has a role ({seen[group]}): one role per group")
+        seen[group] = key
+    names = [r.name for r in em.rigid]
+    for i, name in enumerate(names):
+        if names.index(name) != i:
+            raise CaseError(path, f"embedded.rigid[{i}].name", name, "two rigid bodies of one name")
+    for i, v in enumerate(em.volumes):
+        needs = ("E", "nu", "rho") if v.role == "structure" else ("E", "nu") if v.role == "soil" else ()
+        for key in needs:
+            if getattr(v, key) is None:
+                raise CaseError(path, f"embedded.volumes[{i}].{key}", None, f"a '{v.role}' volume needs {key}")
+    if not any(v.role in ("zone", "soil") for v in em.volumes):
+        raise CaseError(path, "embedded.volumes", [v.group for v in em.volumes],
+                        "no volume holds grains: give at least one 'zone' (or, for the all-DEM twin, 'soil')")
+    if em.model == "coupled" and not any(v.role == "zone" for v in em.volumes):
+        raise CaseError(path, "embedded.volumes", [v.group for v in em.volumes],
+                        "the coupled model needs a 'zone' volume (or set embedded.model = 'dem')")
+    for i, s in enumerate(em.surfaces):
+        if s.dem == "wall" and s.material is None:
+            raise CaseError(path, f"embedded.surfaces[{i}].material", None, "a DEM wall needs a material")
 
 
 # --------------------------------------------------------------------------- calibration files (cosim calibrate)

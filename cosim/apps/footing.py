@@ -245,6 +245,15 @@ class Model:
             return np.zeros(3)
         return self.interface.facets.vertex_impulse.sum(axis=0) / self.solid.dt
 
+    def support_force(self):
+        """Σ of the forces (N) the grains exerted on every wall and facet mesh (the interface's
+        from its last FE step's impulse) over the last step; the same on every rank."""
+        total = sum((w.force for w in self.engine.walls), np.zeros(3))
+        for mesh in self.engine.facets:
+            total = total + (self.interface_force() if self.interface is not None and mesh is self.interface.facets
+                             else mesh.force)
+        return total
+
     def grain_weight(self):
         """Σ m ``|g|`` of the grains (N), over all ranks."""
         from de_domain.comm import sum_in_rank_order
@@ -351,7 +360,7 @@ def run(prepared):
                + coupled_app.fe_layout(model.solid) if model.solid is not None else
                (f", on {mpi_comm().size} MPI ranks" if mpi_comm().size > 1 else "")))
         t0 = time.perf_counter()
-        rest = come_to_rest(case, model, out_dir, name)
+        rest = come_to_rest(model, out_dir, name, case.footing.rest_unbalanced_force, case.footing.max_rest_time)
         clock["rest_s"] = time.perf_counter() - t0
         state = {"specimen_info": specimen_info, "rest": rest, "clock": clock, "grains": len(grains[1]),
                  "cells": n_cells, "surface": model.surface, "soil_density": model.soil_density, "row": 0,
@@ -429,10 +438,11 @@ def _unbalanced(model):
     return unbalanced_force_ratio(model.engine)  # collective
 
 
-def come_to_rest(case, model, out_dir, name):
-    """Run under gravity until the unbalanced force ratio is below footing.rest_unbalanced_force
-    (checked every REST_CHECK_TIME); ``rest.csv``; returns the balance at rest."""
-    ft = case.footing
+def come_to_rest(model, out_dir, name, threshold, max_time):
+    """Run under gravity until the unbalanced force ratio is below ``threshold`` (checked every
+    REST_CHECK_TIME, for at most ``max_time`` s); ``rest.csv``; returns the balance at rest: the
+    interface's vertical force, and every support's (walls, facets, interface) over the grains'
+    weight. Collective."""
     weight = model.grain_weight()
     rows = CsvSeries(out_dir / "rest.csv", REST_COLUMNS) if is_root() else None
     start = model.time
@@ -442,18 +452,20 @@ def come_to_rest(case, model, out_dir, name):
         force = model.interface_force()
         if rows is not None:
             rows.append([model.time, force[2], weight, ufr])
-        if ufr < ft.rest_unbalanced_force or model.time - start >= ft.max_rest_time:
+        if ufr < threshold or model.time - start >= max_time:
             break
     if rows is not None:
         rows.close()
     force = model.interface_force()
-    at_rest = bool(ufr < ft.rest_unbalanced_force)
+    at_rest = bool(ufr < threshold)
     balance = -force[2] / weight if model.interface is not None else None
+    supports = -model.support_force()[2] / weight
     say(f"[{name}] {'at rest' if at_rest else 'NOT at rest'} after {model.time - start:.3f} s: unbalanced force "
-        f"ratio {ufr:.2e}" + (f", interface force / grain weight = {balance:.4f}" if balance is not None else ""))
+        f"ratio {ufr:.2e}" + (f", interface force / grain weight = {balance:.4f}" if balance is not None else "")
+        + f", all supports' vertical force / grain weight = {supports:.4f}")
     return {"at_rest": at_rest, "rest_time": model.time - start, "unbalanced_force_ratio": ufr,
             "grain_weight_N": weight, "interface_force_z_N": float(force[2]),
-            "interface_force_over_weight": balance}
+            "interface_force_over_weight": balance, "support_force_over_weight": supports}
 
 
 def load(case, model, out_dir, name, state, resume=False):

@@ -1,7 +1,7 @@
 """A corpus of bad inputs, each refused by validation alone with exit 2 and one line that
 names what is wrong.
 
-Every entry starts from a shipped case of one of the six kinds (``runs/*.toml``, copied
+Every entry starts from a shipped case of one of the seven kinds (``runs/*.toml``, copied
 into a temporary folder with the packing it uses) and breaks one thing: a value through
 ``--set``, the case text, a packing, a mesh or the output folder. Each entry is checked
 twice, with ``cosim check`` and with ``cosim run``: both must stop in validation with the
@@ -20,7 +20,7 @@ from cosim.cli import main
 RUNS = Path(__file__).parents[2] / "runs"
 BASES = {"dem": "demo_dem_settling.toml", "fe": "fe_footing.toml", "shear": "direct_shear_small.toml",
          "coupled": "coupled_footing_on_sand.toml", "footing": "footing_small.toml",
-         "triaxial": "triaxial_small.toml"}
+         "triaxial": "triaxial_small.toml", "embedded": "retaining_wall_small.toml"}
 
 
 @dataclass
@@ -283,6 +283,26 @@ CORPUS = [
     Bad("coupled", "file not found", sets=['dem.particles.file="missing.npz"']),
     Bad("coupled", "does not use [specimen]", sets=["specimen.scale=2.0"]),
     Bad("coupled", "fe.materials[0].E", sets=["fe.materials[0].E=nan"]),
+    # ---------------------------------------------------------------- embedded (docs/guide/own-geometry.md)
+    Bad("embedded", "no physical volume 'backfill' in the model", edit=(('group = "soil"', 'group = "backfill"'),),
+        label="a role mapped to a volume the model does not have"),
+    Bad("embedded", "physical group 'top' is not a volume", edit=(('group = "soil"', 'group = "top"'),),
+        label="a volume role mapped to a surface"),
+    Bad("embedded", "no physical surface 'roof'", edit=(('group = "base"', 'group = "roof"'),)),
+    Bad("embedded", "this group already has a role", edit=(('group = "far"', 'group = "base"'),),
+        label="a group given two roles"),
+    Bad("embedded", "shares no face with an FE volume", sets=['embedded.mesh="apart.geo"'],
+        files={"apart.geo": b'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 0.05, 0.01, 0.06};\n'
+                            b'Box(2) = {0.1, 0, 0, 0.04, 0.01, 0.06};\nPhysical Volume("zone") = {1};\n'
+                            b'Physical Volume("soil") = {2};\n'},
+        label="a zone with no interface face"),
+    Bad("embedded", "at least 3 of the largest grains", sets=["embedded.parameters.Ly=0.006"],
+        label="a zone thinner than 3 grains"),
+    Bad("embedded", "could not be meshed", sets=['embedded.mesh="broken.geo"'],
+        files={"broken.geo": b"Point(1) = {0, 0, 0;\n"}, label="an unmeshable .geo"),
+    Bad("embedded", "filled by 'radius_expansion'", sets=['specimen.method="under_compaction"']),
+    Bad("embedded", "a 'soil' volume needs E", edit=(("E = 2.0e6\n", ""),)),
+    Bad("embedded", "a DEM wall needs a material", edit=(('material = "side_wall"', ""),)),
     # ---------------------------------------------------------------- footing (docs/design.md §7)
     Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),
     Bad("footing", "at least 3 of the largest grains", sets=["soil.thickness=0.004"],

@@ -1,0 +1,490 @@
+"""Case kind ``embedded``: your own soil–structure problem from one gmsh model
+(docs/guide/own-geometry.md, docs/design.md §5.1).
+
+The model's physical volumes get roles in the case (``[[embedded.volumes]]``): ``zone``
+(grains), ``soil`` (FE in the coupled model, grains in its all-DEM twin) and ``structure``
+(FE in both). The coupling interface is every face shared by a grain volume and an FE
+volume, found from the cells (:mod:`fe_domain.zone_model`); physical surfaces are FE supports
+and DEM walls (``[[embedded.surfaces]]``) or rigid bodies that move during the loading
+(``[[embedded.rigid]]``). ``embedded.model`` picks the coupled model or its all-DEM twin.
+
+The run, in both models:
+
+1. **Fill** — the grain volumes are filled to ``specimen.void_ratio`` by radius expansion
+   inside their faces (:mod:`de_domain.zone_fill`): the interface, walls and rigid bodies hold
+   them, a lid closes each free surface and is lifted and removed at the end;
+2. **Rest** — the model (FE volumes under gravity, with local damping) comes to rest; the
+   vertical force on every support over the grains' weight is reported (``rest.csv``);
+3. **Loading** — each rigid body moves with its velocity and rotates about its pivot for
+   ``embedded.loading_time``; ``series.csv`` has per row and body the displacement, rotation,
+   the force the grains exert on it and its moment about the pivot (impulses over the row's
+   interval / the interval), and the interface force;
+4. **Report** — ``summary.json``, ``load_displacement.png``, ``displacement_section.png`` (the
+   grains seen along y, coloured by their displacement during the loading), ParaView frames
+   (``particles.pvd``) and the FE fields (``fields.xdmf``); when both models of the case have
+   run, ``comparison.csv`` and ``comparison.png`` in the case's folder.
+
+Outputs go to ``runs/out/<name>/<model>/``.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cosim.errors import CaseError
+from cosim.outputs import (
+    CsvSeries,
+    ProgressLine,
+    PvdCollection,
+    atomic_write_text,
+    compilation_seconds,
+    is_root,
+    mpi_comm,
+    say,
+    write_run_metadata,
+)
+
+FRAMES = 5  # ParaView frames over the loading
+RELEASE_FRACTION = 0.02  # the lid is lifted until it carries this x the self-weight stress at the zone's bottom
+AXES = "xyz"
+
+
+# --------------------------------------------------------------------------- inputs
+@dataclass(frozen=True)
+class Roles:
+    """The groups of the case by what they are in this model: grain volumes, FE volumes
+    {group: EmbeddedVolume}, surfaces {group: EmbeddedSurface}, rigid bodies."""
+    grains: list
+    fe: dict
+    surfaces: dict
+    rigid: list
+
+    @classmethod
+    def of(cls, em):
+        grains = [v.group for v in em.volumes if v.role == "zone" or (v.role == "soil" and em.model == "dem")]
+        fe = {v.group: v for v in em.volumes if v.group not in grains}
+        return cls(grains, fe, {s.group: s for s in em.surfaces}, list(em.rigid))
+
+
+def mesh_file(case, case_path):
+    """The model's path: relative to the case file, else in meshes/."""
+    from cosim.case import resolve_path
+    given = resolve_path(case_path, case.embedded.mesh)
+    return given if Path(given).exists() else case.embedded.mesh
+
+
+def prepare(case, case_path, out_dir, resume):
+    """Mesh and split the model and check it against the case (collective; every rank raises
+    the same CaseError): groups exist with the right dimension, the zone has an interface with
+    the FE, rollers are planes normal to an axis, the grain volumes are at least
+    GRAINS_ACROSS of the largest grains thick."""
+    from cosim.case import GRAINS_ACROSS
+    from cosim.specimen import curve_of
+    from de_domain.zone_fill import thickness
+    from fe_domain.mesh import MeshError
+    from fe_domain.zone_model import GroupError, split_model
+    em = case.embedded
+    if resume:
+        raise CaseError(case_path, "--resume", "given", "an embedded run does not resume yet; run without --resume")
+    roles = Roles.of(em)
+    from cosim.apps.coupled import fe_communicator
+    try:
+        split = split_model(mesh_file(case, case_path), em.mesh_size, em.parameters, roles.grains, list(roles.fe),
+                            fe_communicator(em.fe_partition))
+    except GroupError as exc:
+        raise CaseError(case_path, _key_of_group(em, exc.name), exc.name, str(exc)) from None
+    except (MeshError, FileNotFoundError, ValueError) as exc:
+        raise CaseError(case_path, "embedded.mesh", em.mesh,
+                        f"the model could not be meshed and split: {exc}") from None
+    for key, group in ([(f"embedded.surfaces[{i}].group", s.group) for i, s in enumerate(em.surfaces)]
+                       + [(f"embedded.rigid[{i}].surface", r.surface) for i, r in enumerate(em.rigid)]):
+        if split.groups.get(group) != 2:
+            raise CaseError(case_path, key, group, str(GroupError(group, 2, split.groups)))
+    for i, s in enumerate(em.surfaces):
+        if s.fe == "roller" and split.fe is not None and s.group in split.fe.groups:
+            axis = roller_axis(split.surfaces[s.group])
+            if axis is None:
+                raise CaseError(case_path, f"embedded.surfaces[{i}].fe", "roller",
+                                f"surface '{s.group}' is not a plane normal to x, y or z; use 'fixed'")
+    curve = curve_of(case.specimen)
+    d_max = float(curve.diameters[-1])
+    across = thickness(split.zone.tets, split.zone.faces, 0.1 * d_max, np.random.default_rng(0))
+    if across < GRAINS_ACROSS * d_max:
+        raise CaseError(case_path, "embedded.volumes", roles.grains,
+                        f"the grain volumes are {across * 1e3:.2f} mm thick at most: at least {GRAINS_ACROSS} of the "
+                        f"largest grains ({GRAINS_ACROSS * d_max * 1e3:.2f} mm) are needed")
+    return {"split": split, "curve": curve}
+
+
+def _key_of_group(em, name):
+    """The case key that names physical group ``name``."""
+    for i, v in enumerate(em.volumes):
+        if v.group == name:
+            return f"embedded.volumes[{i}].group"
+    return "embedded.volumes"
+
+
+def roller_axis(triangles):
+    """The axis (0, 1, 2) every triangle of a surface is normal to, or None."""
+    n = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    n = n / np.linalg.norm(n, axis=1)[:, None]
+    for axis in range(3):
+        if np.all(np.abs(np.abs(n[:, axis]) - 1.0) < 1e-6):
+            return axis
+    return None
+
+
+# --------------------------------------------------------------------------- fill
+def _materials(case):
+    from cosim.apps.dem import materials_of
+    em = case.embedded
+    names = [em.sand_material, em.interface_material, em.lid_material] + [m.name for m in case.dem.materials]
+    mats, *ids = materials_of(case.dem, *names)
+    return mats, {name: i for name, i in zip(names, ids, strict=True)}
+
+
+def container(case, split, mats, ids):
+    """The walls that hold the grains while they are filled in (:class:`ContainerWall`): the
+    interface, and every free face of the zone by its surface's role — a rigid body's or a DEM
+    wall's material, else a lid of ``embedded.lid_material`` (a free surface)."""
+    from de_domain.zone_fill import ContainerWall
+    em, roles = case.embedded, Roles.of(case.embedded)
+    rigid = {r.surface: r for r in roles.rigid}
+    walls = [ContainerWall(split.zone.interface, mats[ids[em.interface_material]])] if len(split.zone.interface) else []
+    for group, triangles in split.zone.free.items():
+        if group in rigid:
+            walls.append(ContainerWall(triangles, mats[ids[rigid[group].material]]))
+        elif group in roles.surfaces and roles.surfaces[group].dem == "wall":
+            walls.append(ContainerWall(triangles, mats[ids[roles.surfaces[group].material]]))
+        else:
+            walls.append(ContainerWall(triangles, mats[ids[em.lid_material]], lid=True))
+    return walls
+
+
+def fill(case, built, out_dir, name):
+    """Fill the grain volumes (collective); returns (positions, radii, info) and writes
+    ``specimen.npz``."""
+    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, solid_volume_for
+    from de_domain.packing import save_packing
+    from de_domain.zone_fill import fill_zone, tets_volume
+    sp, split = case.specimen, built["split"]
+    mats, ids = _materials(case)
+    volume = tets_volume(split.zone.tets)
+    rng = np.random.default_rng(case.case.seed)
+    diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, volume), rng)
+    sand = mats[ids[case.embedded.sand_material]]
+    if sp.deposition_material is not None:
+        sand = mats[ids[sp.deposition_material]] if sp.deposition_material in ids else sand
+    height = float(np.ptp(split.zone.tets[:, :, 2]))
+    weight_stress = sand.density / (1.0 + sp.void_ratio) * float(np.linalg.norm(case.dem.gravity)) * height
+    settings = GenerationSettings(
+        box_length=1.0, height=height, void_ratio=sp.void_ratio, sand=sand, wall=sand, plate=sand,
+        friction=sp.deposition_friction, rolling_friction=sp.deposition_rolling_friction,
+        rolling_stiffness=sp.deposition_rolling_stiffness, density_scale=sp.density_scale,
+        gravity=tuple(case.dem.gravity), local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
+        contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
+        cloud_solid_fraction=sp.cloud_solid_fraction, max_steps_per_layer=sp.max_steps_per_layer,
+        release_stress=RELEASE_FRACTION * weight_stress, seed=case.case.seed)
+    say(f"[{name}] filling {volume * 1e6:.1f} cm³ of grain volume ({', '.join(Roles.of(case.embedded).grains)}): "
+        f"{len(diameters)} grains, d = {diameters.min() * 1e3:.2f}-{diameters.max() * 1e3:.2f} mm, "
+        f"target e = {sp.void_ratio}")
+    t0 = time.perf_counter()
+    comm = mpi_comm() if mpi_comm().size > 1 else None
+    try:
+        filled = fill_zone(split.zone.tets, container(case, split, mats, ids), diameters, settings,
+                           log=lambda text: say(f"[{name}] {text}"), comm=comm)
+    except ValueError as exc:
+        raise RuntimeError(f"[{name}] {exc}") from None
+    ok = abs(filled.void_ratio - sp.void_ratio) <= sp.tolerance
+    say(f"[{name}] grains: e = {filled.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
+        f"{'OK' if ok else 'MISSED'})")
+    if is_root():
+        save_packing(out_dir / "specimen.npz", filled.positions, filled.radii, void_ratio=filled.void_ratio)
+    info = {"grains": len(filled.radii), "void_ratio": filled.void_ratio, "void_ratio_target": sp.void_ratio,
+            "void_ratio_within_tolerance": bool(ok), "zone_volume_m3": volume, "steps": filled.steps,
+            "wall_clock_s": time.perf_counter() - t0}
+    return filled.positions, filled.radii, info
+
+
+# --------------------------------------------------------------------------- model
+def build_model(case, built, positions, radii):
+    """The DEM engine (grains, rigid bodies first, then DEM walls, the interface last) and the
+    FE volumes with the interface; collective. Returns (footing.Model, rigid FacetMeshes)."""
+    from cosim.apps.coupled import check_replicas, time_steps
+    from cosim.apps.footing import Model
+    from cosim.interface import Interface
+    from de_domain import Engine, Particles
+    from de_domain.zone_fill import facet_mesh, tets_volume
+    em, split = case.embedded, built["split"]
+    roles = Roles.of(em)
+    mats, ids = _materials(case)
+    particles = Particles.from_spheres(positions, radii, np.full(len(radii), ids[em.sand_material], np.int32), mats)
+    bodies = [facet_mesh(split.surfaces[r.surface], ids[r.material]) for r in em.rigid]
+    walls = [facet_mesh(split.zone.free[g], ids[s.material]) for g, s in roles.surfaces.items()
+             if s.dem == "wall" and g in split.zone.free]
+    comm = mpi_comm() if mpi_comm().size > 1 else None
+    dem = case.dem
+    engine_args = dict(contact_law=dem.contact_law, gravity=dem.gravity, safety_factor=case.time.safety_factor,
+                       local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
+    surface = float(np.max(positions[:, 2] + radii))
+    if split.fe is None:
+        engine = Engine(particles, mats, facets=bodies + walls, **engine_args)
+        return Model(em.model, engine, None, surface), bodies
+    sand = mats[ids[em.sand_material]]
+    bulk = sand.density * float(np.sum(4.0 / 3.0 * np.pi * radii**3)) / tets_volume(split.zone.tets)
+    solid = build_fe(case, split, roles, bulk)
+    check_replicas(solid)
+    interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
+    engine = Engine(particles, mats, facets=bodies + walls + [interface.facets], **engine_args)
+    fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, em.subcycles)
+    solid.dt, engine.dt = fe_dt, dem_dt
+    return Model(em.model, engine, None, surface, solid, interface, n_sub, bulk), bodies
+
+
+def build_fe(case, split, roles, bulk_density):
+    """The FE volumes on the split mesh: a material per volume (soil without ρ: the packing's
+    bulk density), supports from the surfaces' ``fe`` roles, gravity, local damping."""
+    from fe_domain.build import build_solid
+    from fe_domain.explicit import stable_alpha_tau
+    materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density} for g, v in roles.fe.items()}
+    supports = []
+    for group, s in roles.surfaces.items():
+        if group not in split.fe.groups or s.fe == "free":
+            continue
+        components = [0, 1, 2] if s.fe == "fixed" else [roller_axis(split.surfaces[group])]
+        supports.append({"type": "fixed", "boundary": group, "components": components})
+    nu = max(v.nu for v in roles.fe.values())
+    return build_solid(split.fe, material=materials, boundary_conditions=supports,
+                       loads=[{"type": "body_force", "acceleration": list(case.dem.gravity)}],
+                       damping={"type": "local", "alpha": case.embedded.damping} if case.embedded.damping else None,
+                       formulation="mixed", alpha_tau=stable_alpha_tau(nu), safety_factor=case.time.safety_factor)
+
+
+# --------------------------------------------------------------------------- loading
+def columns(rigid):
+    """series.csv columns: per rigid body its motion, force and moment, then the interface force."""
+    per_body = [f"{r.name}_{q}" for r in rigid for q in
+                ("displacement", "rotation", *(f"force_{a}" for a in AXES), *(f"moment_{a}" for a in AXES))]
+    return ["time", *per_body, *(f"interface_force_{a}" for a in AXES), "unbalanced_force_ratio", "step"]
+
+
+def rotation_matrix(axis_angle):
+    """R of a rotation by |θ| about θ/|θ| (Rodrigues' formula)."""
+    theta = float(np.linalg.norm(axis_angle))
+    if theta == 0.0:
+        return np.eye(3)
+    k = np.asarray(axis_angle) / theta
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
+
+
+def place_body(mesh, reference, body, elapsed):
+    """The body's vertices at ``elapsed`` s of loading — reference rotated by ω t about the
+    pivot, then translated by v t — and their velocities v + ω × (x − c(t))."""
+    pivot = np.asarray(body.pivot, float)
+    omega, velocity = np.asarray(body.angular_velocity, float), np.asarray(body.velocity, float)
+    centre = pivot + velocity * elapsed
+    positions = (reference - pivot) @ rotation_matrix(omega * elapsed).T + centre
+    mesh.set_vertex_state(positions, velocity + np.cross(omega, positions - centre))
+
+
+def load(case, model, bodies, out_dir, name):
+    """Move the rigid bodies for embedded.loading_time; series.csv; returns the series (rank 0)."""
+    from cosim.apps import coupled as coupled_app
+    from cosim.lab.shear_report import read_series
+    from de_domain.io import write_frame
+    from fe_domain.output import FieldWriter
+    em = case.embedded
+    row_time = em.loading_time / em.rows
+    references = [b.vertices.copy() for b in bodies]
+    rows = CsvSeries(out_dir / "series.csv", columns(em.rigid)) if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd") if is_root() and case.output.vtk else None
+    fields = None
+    if model.solid is not None and coupled_app.writes_fe_files(model.solid):
+        fields = FieldWriter(model.solid, out_dir / "fields", extra_fields=[model.interface.traction_field])
+    for mesh in bodies:
+        mesh.reset_impulse()
+    model.take_interface_impulse()
+    start = model.time
+    progress = ProgressLine(name, em.rows, case.output.progress_interval)
+    frame_every = max(1, em.rows // FRAMES)
+    t_last = model.time
+    for k in range(1, em.rows + 1):
+        for mesh, reference, body in zip(bodies, references, em.rigid, strict=True):
+            place_body(mesh, reference, body, model.time - start)
+        model.advance(row_time)
+        elapsed, t_last = model.time - t_last, model.time
+        row = [model.time]
+        for mesh, body in zip(bodies, em.rigid, strict=True):
+            t = model.time - start
+            arm = mesh.vertices - (np.asarray(body.pivot) + np.asarray(body.velocity) * t)
+            force = mesh.vertex_impulse.sum(axis=0) / elapsed
+            moment = np.cross(arm, mesh.vertex_impulse).sum(axis=0) / elapsed
+            mesh.reset_impulse()
+            row += [float(np.linalg.norm(body.velocity)) * t, float(np.linalg.norm(body.angular_velocity)) * t,
+                    *force, *moment]
+        row += [*(model.take_interface_impulse() / elapsed), _unbalanced(model), model.engine.step_count]
+        if rows is not None:
+            rows.append(row)
+        if k % frame_every == 0 or k == em.rows:
+            paths = write_frame(out_dir / "frames", model.engine, model.engine.step_count) if case.output.vtk else None
+            if frames is not None:
+                frames.add(model.time, paths)
+            if fields is not None:
+                fields.write()
+        progress.update(k, model.time)
+    progress.update(em.rows, model.time, force=True)
+    for mesh in bodies:
+        mesh.velocity = np.zeros(3)
+    if fields is not None:
+        fields.close()
+    if rows is None:
+        return None
+    rows.close()
+    return read_series(out_dir / "series.csv")
+
+
+def _unbalanced(model):
+    from de_domain.diagnostics import unbalanced_force_ratio
+    return unbalanced_force_ratio(model.engine)
+
+
+# --------------------------------------------------------------------------- run
+def run(prepared):
+    from cosim.apps.footing import come_to_rest
+    case, em = prepared.case, prepared.case.embedded
+    out_dir = Path(prepared.out_dir) / em.model
+    if is_root():
+        out_dir.mkdir(parents=True, exist_ok=True)
+    mpi_comm().Barrier()
+    write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
+    name = f"{case.case.name}/{em.model}"
+    compiling_before = compilation_seconds()
+    clock = {}
+    t0 = time.perf_counter()
+    positions, radii, fill_info = fill(case, prepared.built, out_dir, name)
+    clock["fill_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    model, bodies = build_model(case, prepared.built, positions, radii)
+    clock["build_s"] = time.perf_counter() - t0
+    say(f"[{name}] {len(radii)} grains, DEM dt = {model.engine.dt:.3e} s"
+        + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
+           f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
+    t0 = time.perf_counter()
+    rest = come_to_rest(model, out_dir, name, em.rest_unbalanced_force, em.max_rest_time)
+    clock["rest_s"] = time.perf_counter() - t0
+    start = model.engine.global_particles().pos.copy()
+    t0 = time.perf_counter()
+    series = load(case, model, bodies, out_dir, name)
+    clock["loading_s"] = time.perf_counter() - t0
+    grains = model.engine.global_particles()
+    compiling = compilation_seconds() - compiling_before
+    if not is_root():
+        return
+    from de_domain.packing import save_packing
+    save_packing(out_dir / "final_packing.npz", grains.pos, grains.radius)
+    total = sum(clock.values())
+    summary = {"model": em.model, "grains": len(radii), "ranks": mpi_comm().size, "fill": fill_info, "rest": rest,
+               "dem_dt_s": model.engine.dt, "rigid": rigid_summary(em.rigid, series),
+               "wall_clock_s": {**clock, "total_s": total, "compilation_s": compiling,
+                                "total_without_compilation_s": total - compiling}}
+    if model.solid is not None:
+        summary.update({"fe_dt_s": model.solid.dt, "subcycles": model.subcycles,
+                        "interface_facets": len(model.interface.facets.triangles)})
+    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    plot_rigid_forces({em.model: series}, em.rigid, out_dir / "load_displacement.png", case.case.name)
+    plot_section(start, grains, out_dir / "displacement_section.png", f"{case.case.name} ({em.model})")
+    compare_models(Path(prepared.out_dir), em.rigid, case.case.name)
+    say(f"[{name}] done: wall-clock {total:.0f} s, of which {compiling:.0f} s compiling (first run only)")
+
+
+def rigid_summary(rigid, series, tail=0.2):
+    """Per rigid body: its final displacement and rotation, and the force and moment (mean over
+    the last ``tail`` of the rows), with the lever arm |M × F| / |F|² about the pivot."""
+    out = {}
+    n = max(1, int(round(tail * len(series["time"]))))
+    for body in rigid:
+        force = np.array([np.mean(series[f"{body.name}_force_{a}"][-n:]) for a in AXES])
+        moment = np.array([np.mean(series[f"{body.name}_moment_{a}"][-n:]) for a in AXES])
+        norm2 = float(force @ force)
+        out[body.name] = {"displacement_m": float(series[f"{body.name}_displacement"][-1]),
+                          "rotation_rad": float(series[f"{body.name}_rotation"][-1]),
+                          "force_N": force.tolist(), "moment_Nm": moment.tolist(),
+                          "lever_arm_m": float(np.linalg.norm(np.cross(force, moment)) / norm2) if norm2 else None}
+    return out
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_rigid_forces(curves, rigid, path, title):
+    """|F| of each rigid body against its displacement (or rotation), one line per model."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    for label, series in curves.items():
+        for body in rigid:
+            moves = np.any(body.velocity)
+            x = series[f"{body.name}_displacement"] * 1e3 if moves else np.degrees(series[f"{body.name}_rotation"])
+            f = np.linalg.norm([series[f"{body.name}_force_{a}"] for a in AXES], axis=0)
+            ax.plot(x, f, label=f"{body.name} ({label})")
+    ax.set_xlabel("displacement [mm]" if any(np.any(b.velocity) for b in rigid) else "rotation [deg]")
+    ax.set_ylabel("force of the grains on the body |F| [N]")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_section(before, after, path, title):
+    """The grains seen along y (x–z), coloured by |Δx| during the loading."""
+    plt = _plt()
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Circle
+    disp = np.linalg.norm(after.pos - before, axis=1)
+    order = np.argsort(after.pos[:, 1])[::-1]
+    fig, ax = plt.subplots(figsize=(8.0, 5.0))
+    circles = PatchCollection([Circle((after.pos[i, 0], after.pos[i, 2]), after.radius[i]) for i in order],
+                              cmap="viridis", linewidths=0)
+    circles.set_array(1e3 * disp[order])
+    circles.set_clim(0.0, 1e3 * float(np.percentile(disp, 99.5)) or 1.0)
+    ax.add_collection(circles)
+    fig.colorbar(circles, ax=ax, label="grain displacement during loading [mm]", shrink=0.8)
+    ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def compare_models(case_dir, rigid, title):
+    """When both models' series exist: ``comparison.csv`` (per rigid body the mean force and
+    moment over the loading in each model and their difference) and ``comparison.png``."""
+    paths = {m: case_dir / m / "series.csv" for m in ("coupled", "dem")}
+    if not all(p.exists() for p in paths.values()) or not rigid:
+        return None
+    from cosim.lab.shear_report import read_series
+    curves = {m: read_series(p) for m, p in paths.items()}
+    lines = ["quantity,coupled,dem,difference"]
+    for body in rigid:
+        for q in [f"force_{a}" for a in AXES] + [f"moment_{a}" for a in AXES]:
+            c, d = (float(np.mean(curves[m][f"{body.name}_{q}"])) for m in ("coupled", "dem"))
+            lines.append(f"{body.name}_{q},{c:.6g},{d:.6g},{(c - d) / d if d else float('nan'):.4f}")
+    atomic_write_text(case_dir / "comparison.csv", "\n".join(lines) + "\n")
+    plot_rigid_forces({"coupled": curves["coupled"], "all-DEM": curves["dem"]}, rigid, case_dir / "comparison.png",
+                      f"{title}: coupled against all-DEM")
+    say(f"[{title}] coupled against all-DEM (mean over the loading): {case_dir / 'comparison.csv'}\n  "
+        + "\n  ".join(lines[1:]))
+    return lines

@@ -1,0 +1,48 @@
+"""The ``embedded`` kind end to end on a small retaining wall (runs/retaining_wall_small.toml
+made smaller): the zone filled inside its faces, the model at rest with every support's
+vertical force equal to the grains' weight within 1 %, the wall pushed by the backfill while
+it moves away, and the outputs a user opens."""
+import json
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.lab.shear_report import read_series
+
+SMALL = ["embedded.parameters.L=0.09", "embedded.parameters.H=0.04", "embedded.parameters.a=0.03",
+         "embedded.loading_time=0.02", "embedded.rows=5", "output.progress_interval=1000.0"]
+
+
+@pytest.fixture(scope="module")
+def coupled(tmp_path_factory):
+    out = tmp_path_factory.mktemp("embedded")
+    sets = [arg for s in SMALL for arg in ("--set", s)]
+    assert main(["run", "runs/retaining_wall_small.toml", *sets, "--out", str(out)]) == 0
+    return out / "coupled"
+
+
+def test_the_model_rests_on_its_supports_with_the_grains_weight(coupled):
+    summary = json.loads((coupled / "summary.json").read_text())
+    rest = summary["rest"]
+    assert rest["at_rest"]
+    assert rest["support_force_over_weight"] == pytest.approx(1.0, abs=0.01)
+    fill = summary["fill"]
+    assert fill["zone_volume_m3"] == pytest.approx(0.03 * 0.01 * 0.04, rel=1e-12)
+    assert fill["void_ratio"] >= 0.74 - 1e-3               # the target, released a little looser
+    assert summary["interface_facets"] > 0 and summary["subcycles"] >= 1
+
+
+def test_the_backfill_pushes_the_wall_away_from_it(coupled):
+    series = read_series(coupled / "series.csv")
+    assert np.all(series["wall_force_x"] < 0.0)            # the grains push the wall towards -x
+    assert np.all(series["interface_force_x"] > 0.0)       # and the FE soil beyond, towards +x
+    assert series["wall_displacement"][-1] == pytest.approx(0.01 * 0.02, rel=0.05)
+    moment_arm = series["wall_moment_y"] / series["wall_force_x"]   # M_y = z F_x about the toe
+    assert np.all((moment_arm > 0.0) & (moment_arm < 0.04))  # the thrust acts on the wall, above its toe
+
+
+def test_the_run_writes_what_a_user_opens(coupled):
+    for name in ("load_displacement.png", "displacement_section.png", "particles.pvd", "fields.xdmf",
+                 "specimen.npz", "final_packing.npz", "rest.csv"):
+        assert (coupled / name).exists(), name
