@@ -124,10 +124,12 @@ def main(argv=None):
 
 def _finish_interrupted_commit(out_dir):
     """A run killed while making its last checkpoint current left a commit record: finish it
-    (rank 0), so that --resume reads the files of one instant (cosim.outputs.commit_checkpoint)."""
+    (rank 0), so that --resume reads the files of one instant (cosim.outputs.commit_checkpoint).
+    The record is in the output folder, or in its model folder (footing, embedded: <out>/<model>/)."""
     from cosim.outputs import finish_commit, is_root, mpi_comm
     if is_root():
-        finish_commit(out_dir)
+        for folder in [Path(out_dir), *(p for p in sorted(Path(out_dir).glob("*")) if p.is_dir())]:
+            finish_commit(folder)
     mpi_comm().Barrier()
 
 

@@ -49,6 +49,8 @@ from cosim.outputs import (
 )
 
 FRAMES = 5  # ParaView frames over the loading
+STATE = "embedded_state.json"  # the loading loop's state at the last checkpoint (with checkpoint.npz)
+LOADING_START = "loading_start.npz"  # every grain's position when the loading began
 RELEASE_FRACTION = 0.02  # the lid is lifted until it carries this x the self-weight stress at the zone's bottom
 AXES = "xyz"
 
@@ -88,8 +90,12 @@ def prepare(case, case_path, out_dir, resume):
     from fe_domain.mesh import MeshError
     from fe_domain.zone_model import GroupError, split_model
     em = case.embedded
-    if resume:
-        raise CaseError(case_path, "--resume", "given", "an embedded run does not resume yet; run without --resume")
+    model_dir = Path(out_dir) / em.model
+    found = (model_dir / STATE).exists() and (model_dir / "checkpoint.npz").exists()
+    if resume and not mpi_comm().allreduce(int(found)):
+        raise CaseError(case_path, "--resume", str(model_dir / "checkpoint.npz"),
+                        "no embedded checkpoint in the output folder (checkpoints start with the loading); "
+                        "run without --resume")
     roles = Roles.of(em)
     from cosim.apps.coupled import fe_communicator
     try:
@@ -223,7 +229,7 @@ def build_model(case, built, positions, radii):
     roles = Roles.of(em)
     mats, ids = _materials(case)
     particles = Particles.from_spheres(positions, radii, np.full(len(radii), ids[em.sand_material], np.int32), mats)
-    bodies = [facet_mesh(split.surfaces[r.surface], ids[r.material]) for r in em.rigid]
+    bodies = rigid_bodies(case, split, ids)
     walls = [facet_mesh(split.zone.free[g], ids[s.material]) for g, s in roles.surfaces.items()
              if s.dem == "wall" and g in split.zone.free]
     comm = mpi_comm() if mpi_comm().size > 1 else None
@@ -243,6 +249,31 @@ def build_model(case, built, positions, radii):
     fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, em.subcycles)
     solid.dt, engine.dt = fe_dt, dem_dt
     return Model(em.model, engine, None, surface, solid, interface, n_sub, bulk), bodies
+
+
+def rigid_bodies(case, split, ids):
+    """The rigid bodies' facet meshes where the model puts them (before any loading)."""
+    from de_domain.zone_fill import facet_mesh
+    return [facet_mesh(split.surfaces[r.surface], ids[r.material]) for r in case.embedded.rigid]
+
+
+def resumed_model(case, case_path, out_dir, built, state):
+    """The model at the last checkpoint of the loading (DEM engine with its rigid bodies, walls
+    and interface facets; the FE volumes on the prepared mesh with their state); collective.
+    Returns (footing.Model, rigid FacetMeshes)."""
+    from cosim.apps.footing import Model, checkpointed_engine, restore_fe
+    from cosim.interface import Interface
+    em, split = case.embedded, built["split"]
+    engine = checkpointed_engine(case_path, out_dir, state, STATE)
+    bodies = engine.facets[:len(em.rigid)]  # rigid bodies first (build_model)
+    if split.fe is None:
+        return Model(em.model, engine, None, state["surface"]), bodies
+    _, ids = _materials(case)
+    solid = build_fe(case, split, Roles.of(em), state["soil_density"])
+    interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
+    restore_fe(solid, interface, engine, case_path, out_dir)
+    return Model(em.model, engine, None, state["surface"], solid, interface, int(round(solid.dt / engine.dt)),
+                 state["soil_density"]), bodies
 
 
 def build_fe(case, split, roles, bulk_density):
@@ -292,28 +323,37 @@ def place_body(mesh, reference, body, elapsed):
     mesh.set_vertex_state(positions, velocity + np.cross(omega, positions - centre))
 
 
-def load(case, model, bodies, out_dir, name):
-    """Move the rigid bodies for embedded.loading_time; series.csv; returns the series (rank 0)."""
+def load(case, model, bodies, references, out_dir, name, state, resume=False):
+    """Move the rigid bodies (from their ``references`` vertices) for embedded.loading_time;
+    series.csv; a checkpoint every output.checkpoint_interval (after a row), from which
+    ``resume`` continues; returns the series (rank 0)."""
     from cosim.apps import coupled as coupled_app
+    from cosim.apps.footing import save_checkpoint
     from cosim.lab.shear_report import read_series
     from de_domain.io import write_frame
     from fe_domain.output import FieldWriter
     em = case.embedded
     row_time = em.loading_time / em.rows
-    references = [b.vertices.copy() for b in bodies]
-    rows = CsvSeries(out_dir / "series.csv", columns(em.rigid)) if is_root() else None
-    frames = PvdCollection(out_dir / "particles.pvd") if is_root() and case.output.vtk else None
+    if resume:
+        first_row, start = state["row"] + 1, state["loading_start_time"]
+    else:
+        first_row, start = 1, model.time
+        for mesh in bodies:
+            mesh.reset_impulse()
+        model.take_interface_impulse()  # the rest phase's is not the loading's
+        state["loading_start_time"] = start
+    resume_time = model.time if resume else None
+    rows = CsvSeries(out_dir / "series.csv", columns(em.rigid), resume_time) if is_root() else None
+    frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     fields = None
     if model.solid is not None and coupled_app.writes_fe_files(model.solid):
-        fields = FieldWriter(model.solid, out_dir / "fields", extra_fields=[model.interface.traction_field])
-    for mesh in bodies:
-        mesh.reset_impulse()
-    model.take_interface_impulse()
-    start = model.time
-    progress = ProgressLine(name, em.rows, case.output.progress_interval)
+        stem = f"fields_from_step{model.solid.step_count}" if resume else "fields"
+        fields = FieldWriter(model.solid, out_dir / stem, extra_fields=[model.interface.traction_field])
+    progress = ProgressLine(name, em.rows, case.output.progress_interval, first_step=first_row - 1)
     frame_every = max(1, em.rows // FRAMES)
     t_last = model.time
-    for k in range(1, em.rows + 1):
+    t_entry = last_checkpoint = time.perf_counter()
+    for k in range(first_row, em.rows + 1):
         for mesh, reference, body in zip(bodies, references, em.rigid, strict=True):
             place_body(mesh, reference, body, model.time - start)
         model.advance(row_time)
@@ -337,7 +377,14 @@ def load(case, model, bodies, out_dir, name):
             if fields is not None:
                 fields.write()
         progress.update(k, model.time)
+        due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
+        if k < em.rows and mpi_comm().bcast(due, root=0):  # rank 0's clock decides for all
+            now = time.perf_counter()
+            save_checkpoint(out_dir, model, {**state, "row": k,
+                                             "loading_before_s": state["loading_before_s"] + now - t_entry}, STATE)
+            last_checkpoint = now
     progress.update(em.rows, model.time, force=True)
+    state["loading_before_s"] += time.perf_counter() - t_entry
     for mesh in bodies:
         mesh.velocity = np.zeros(3)
     if fields is not None:
@@ -364,32 +411,45 @@ def run(prepared):
     write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
     name = f"{case.case.name}/{em.model}"
     compiling_before = compilation_seconds()
-    clock = {}
-    t0 = time.perf_counter()
-    positions, radii, fill_info = fill(case, prepared.built, out_dir, name)
-    clock["fill_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    model, bodies = build_model(case, prepared.built, positions, radii)
-    clock["build_s"] = time.perf_counter() - t0
-    say(f"[{name}] {len(radii)} grains, DEM dt = {model.engine.dt:.3e} s"
-        + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
-           f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
-    t0 = time.perf_counter()
-    rest = come_to_rest(model, out_dir, name, em.rest_unbalanced_force, em.max_rest_time)
-    clock["rest_s"] = time.perf_counter() - t0
-    start = model.engine.global_particles().pos.copy()
-    t0 = time.perf_counter()
-    series = load(case, model, bodies, out_dir, name)
-    clock["loading_s"] = time.perf_counter() - t0
-    grains = model.engine.global_particles()
-    compiling = compilation_seconds() - compiling_before
+    _, ids = _materials(case)
+    references = [b.vertices.copy() for b in rigid_bodies(case, prepared.built["split"], ids)]
+    if prepared.resume:
+        state = json.loads((out_dir / STATE).read_text())
+        model, bodies = resumed_model(case, prepared.case_path, out_dir, prepared.built, state)
+        say(f"[{name}] resumed the loading at row {state['row']} (t = {model.time:.4e} s)")
+    else:
+        clock = {}
+        t0 = time.perf_counter()
+        positions, radii, fill_info = fill(case, prepared.built, out_dir, name)
+        clock["fill_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        model, bodies = build_model(case, prepared.built, positions, radii)
+        clock["build_s"] = time.perf_counter() - t0
+        say(f"[{name}] {len(radii)} grains, DEM dt = {model.engine.dt:.3e} s"
+            + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
+               f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
+        t0 = time.perf_counter()
+        rest = come_to_rest(model, out_dir, name, em.rest_unbalanced_force, em.max_rest_time)
+        clock["rest_s"] = time.perf_counter() - t0
+        state = {"fill": fill_info, "rest": rest, "clock": clock, "grains": len(radii), "surface": model.surface,
+                 "soil_density": model.soil_density, "row": 0, "loading_before_s": 0.0,
+                 "compilation_before_s": 0.0}
+        start = model.engine.global_particles().pos  # collective
+        if is_root():
+            atomic_write_npz(out_dir / LOADING_START, position=start)
+    state["compilation_before_s"] += compilation_seconds() - compiling_before
+    compiling_before = compilation_seconds()
+    series = load(case, model, bodies, references, out_dir, name, state, prepared.resume)
+    grains = model.engine.global_particles()  # collective
+    compiling = state["compilation_before_s"] + compilation_seconds() - compiling_before
     if not is_root():
         return
     from de_domain.packing import save_packing
     save_packing(out_dir / "final_packing.npz", grains.pos, grains.radius)
+    clock = {**state["clock"], "loading_s": state["loading_before_s"]}
     total = sum(clock.values())
-    summary = {"model": em.model, "grains": len(radii), "ranks": mpi_comm().size, "fill": fill_info, "rest": rest,
-               "dem_dt_s": model.engine.dt, "rigid": rigid_summary(em.rigid, series),
+    summary = {"model": em.model, "grains": state["grains"], "ranks": mpi_comm().size, "fill": state["fill"],
+               "rest": state["rest"], "dem_dt_s": model.engine.dt, "rigid": rigid_summary(em.rigid, series),
                "wall_clock_s": {**clock, "total_s": total, "compilation_s": compiling,
                                 "total_without_compilation_s": total - compiling}}
     if model.solid is not None:
@@ -397,9 +457,17 @@ def run(prepared):
                         "interface_facets": len(model.interface.facets.triangles)})
     atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     plot_rigid_forces({em.model: series}, em.rigid, out_dir / "load_displacement.png", case.case.name)
-    plot_section(start, grains, out_dir / "displacement_section.png", f"{case.case.name} ({em.model})")
+    with np.load(out_dir / LOADING_START) as start:
+        plot_section(start["position"], grains, out_dir / "displacement_section.png", f"{case.case.name} ({em.model})")
     compare_models(Path(prepared.out_dir), em.rigid, case.case.name)
     say(f"[{name}] done: wall-clock {total:.0f} s, of which {compiling:.0f} s compiling (first run only)")
+
+
+def atomic_write_npz(path, **arrays):
+    """``np.savez`` to a temporary file renamed over ``path``: never a half-written file."""
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    tmp.replace(path)
 
 
 def rigid_summary(rigid, series, tail=0.2):

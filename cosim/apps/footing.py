@@ -538,7 +538,7 @@ def load(case, model, out_dir, name, state, resume=False):
         due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
         if k < ft.rows and mpi_comm().bcast(due, root=0):  # rank 0's clock decides for all
             now = time.perf_counter()
-            _save_checkpoint(out_dir, model, {**state, "row": k, "z0": z0,
+            save_checkpoint(out_dir, model, {**state, "row": k, "z0": z0,
                                               "loading_before_s": state["loading_before_s"] + now - t_entry})
             last_checkpoint = now
     progress.update(ft.rows, model.time, force=True)
@@ -585,9 +585,9 @@ def seat_footing(model, area, pressure, interval, limit, name):
     return {"pressure_Pa": float(q), "travel_m": travel}
 
 
-def _save_checkpoint(out_dir, model, state):
+def save_checkpoint(out_dir, model, state, state_file=STATE):
     """The DEM (and, coupled, the FE with the impulse in transit: ``coupled.stage_checkpoint``)
-    and the loading loop's ``state`` (JSON, rank 0), committed together
+    and the loading loop's ``state`` (JSON in ``state_file``, rank 0), committed together
     (:func:`cosim.outputs.commit_checkpoint`); collective."""
     from cosim.apps import coupled as coupled_app
     if model.solid is not None:
@@ -596,36 +596,51 @@ def _save_checkpoint(out_dir, model, state):
         save_engine_checkpoint(model.engine, staged(out_dir / "checkpoint.npz"))
         finals = [out_dir / "checkpoint.npz"] if is_root() else []
     if is_root():
-        atomic_write_text(staged(out_dir / STATE), json.dumps({**state, "step": model.engine.step_count}, indent=1))
-        finals.append(out_dir / STATE)
+        atomic_write_text(staged(out_dir / state_file),
+                          json.dumps({**state, "step": model.engine.step_count}, indent=1))
+        finals.append(out_dir / state_file)
     commit_checkpoint(out_dir, finals)
 
 
-def resumed_model(case, case_path, out_dir, built, state):
-    """The model at the last checkpoint of the loading: the DEM engine (grains, walls, footing,
-    interface facets with their impulse) and, coupled, the FE soil on the prepared mesh with its
-    state and the interface force in transit; collective."""
-    from cosim.apps import coupled as coupled_app
+def checkpointed_engine(case_path, out_dir, state, state_file=STATE):
+    """The DEM engine of the last checkpoint (any rank count), checked against the loop's
+    ``state``; collective."""
     from cosim.apps import dem as dem_app
-    from cosim.apps import fe as fe_app
     comm = mpi_comm()
     engine = dem_app.load_checkpoint(case_path, out_dir / "checkpoint.npz", comm if comm.size > 1 else None)
     if engine.step_count != state["step"]:
-        raise CaseError(out_dir / STATE, "step", state["step"],
+        raise CaseError(out_dir / state_file, "step", state["step"],
                         f"does not match the checkpoint (step {engine.step_count}); run without --resume")
-    if case.footing.model == "dem":
-        return Model("dem", engine, engine.facets[0], state["surface"])
-    _, ids = _material_ids(case)
-    solid, interface = build_soil(case, Geometry.of(case), ids["interface"], state["soil_density"],
-                                  built["soil_mesh"])
+    return engine
+
+
+def restore_fe(solid, interface, engine, case_path, out_dir):
+    """The FE state of the last checkpoint into ``solid`` (built afresh on the prepared mesh),
+    the interface tied to the engine's last facet mesh, and the interface force in transit
+    made again from the saved impulse; collective."""
+    from cosim.apps import coupled as coupled_app
+    from cosim.apps import fe as fe_app
     fe_state = fe_app.restore_checkpoint(solid, case_path, out_dir, coupled_app.FE_CHECKPOINT_STEM)
     if abs(engine.time - solid.time) > 0.5 * engine.dt:  # files of two runs mixed by hand
         raise CaseError(case_path, "--resume", str(out_dir / "checkpoint.npz"),
                         "the DEM and FE checkpoints are of different instants; run without --resume")
     if "interface_held" in fe_state:
         interface.held[:] = fe_state["interface_held"]
-    interface.facets = engine.facets[-1]  # the interface is the last facet mesh (build_model)
-    interface.receive_forces(solid.dt)  # the interface force in transit, from the saved impulse
+    interface.facets = engine.facets[-1]  # the interface is the last facet mesh
+    interface.receive_forces(solid.dt)
+
+
+def resumed_model(case, case_path, out_dir, built, state):
+    """The model at the last checkpoint of the loading: the DEM engine (grains, walls, footing,
+    interface facets with their impulse) and, coupled, the FE soil on the prepared mesh with its
+    state and the interface force in transit; collective."""
+    engine = checkpointed_engine(case_path, out_dir, state)
+    if case.footing.model == "dem":
+        return Model("dem", engine, engine.facets[0], state["surface"])
+    _, ids = _material_ids(case)
+    solid, interface = build_soil(case, Geometry.of(case), ids["interface"], state["soil_density"],
+                                  built["soil_mesh"])
+    restore_fe(solid, interface, engine, case_path, out_dir)
     return Model("coupled", engine, engine.facets[0], state["surface"], solid, interface,
                  int(round(solid.dt / engine.dt)), state["soil_density"])
 

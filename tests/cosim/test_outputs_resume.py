@@ -84,6 +84,20 @@ def test_a_commit_killed_among_its_renames_is_finished_on_resume(tmp_path):
     finish_commit(tmp_path)  # no record: nothing to do
 
 
+def test_resume_finishes_a_commit_left_in_a_model_folder(tmp_path):
+    """The footing and embedded kinds checkpoint into <out>/<model>/: --resume finishes a commit
+    record left there too (cosim.cli), not only one in the output folder."""
+    from cosim.cli import _finish_interrupted_commit
+    model = tmp_path / "coupled"
+    model.mkdir()
+    (model / "checkpoint.npz").write_text("dem 2")
+    staged(model / "checkpoint.fe.rank0of1.npz").write_text("fe 2")
+    (model / CHECKPOINT_COMMIT).write_text(json.dumps(["checkpoint.npz", "checkpoint.fe.rank0of1.npz"]))
+    _finish_interrupted_commit(tmp_path)
+    assert (model / "checkpoint.fe.rank0of1.npz").read_text() == "fe 2"
+    assert not (model / CHECKPOINT_COMMIT).exists()
+
+
 def test_staged_files_of_a_checkpoint_killed_while_being_written_are_ignored(tmp_path):
     """Killed before the commit record: the current files stay the previous instant's."""
     (tmp_path / "state.json").write_text("row 1")

@@ -225,9 +225,9 @@ def test_resume_without_a_checkpoint_is_one_message(tmp_path):
     assert res.returncode == 2 and "no footing checkpoint" in res.stderr
 
 
-def kill_during_loading(args, out, mpi=0):
+def kill_during_loading(args, out, mpi=0, state="footing_state.json"):
     """Start ``cosim run ARGS`` (under mpirun -n MPI if given) and SIGKILL it, every rank, once
-    the loading has checkpointed and written a few rows."""
+    the loading has checkpointed (its ``state`` file written) and written a few rows."""
     import signal
     import time
     cmd = [str(COSIM), "run", *args]
@@ -238,7 +238,7 @@ def kill_during_loading(args, out, mpi=0):
     series = out / "coupled" / "series.csv"
     deadline = time.time() + 600
     while time.time() < deadline and proc.poll() is None:
-        if (out / "coupled" / "footing_state.json").exists() and series.exists() and \
+        if (out / "coupled" / state).exists() and series.exists() and \
                 len(series.read_text().splitlines()) > 4:
             break
         time.sleep(0.05)

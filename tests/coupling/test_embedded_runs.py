@@ -1,0 +1,55 @@
+"""The ``embedded`` kind under mpirun and through a kill: a small retaining wall
+(runs/retaining_wall_small.toml made smaller, as tests/cosim/test_embedded_case.py) run on 2
+ranks — the fill, the rest and the loading — writes the 1-rank run's rows and grains to the
+last bit; killed during the loading, it resumes from its checkpoint to the same rows."""
+import json
+
+import numpy as np
+import pytest
+from test_footing import cosim, kill_during_loading
+
+CASE = "runs/retaining_wall_small.toml"
+SMALL = {"embedded.parameters.L": 0.09, "embedded.parameters.H": 0.04, "embedded.parameters.a": 0.03,
+         "embedded.loading_time": 0.02, "embedded.rows": 8}
+
+
+def overrides(extra=None):
+    return [arg for key, value in {**SMALL, **(extra or {})}.items() for arg in ("--set", f"{key}={json.dumps(value)}")]
+
+
+@pytest.fixture(scope="module")
+def one_rank(tmp_path_factory):
+    out = tmp_path_factory.mktemp("embedded_one")
+    res = cosim("run", CASE, "--out", str(out), *overrides())
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return out
+
+
+def test_two_ranks_fill_rest_and_load_the_same_model_bit_for_bit(one_rank, tmp_path):
+    res = cosim("run", CASE, "--out", str(tmp_path), *overrides(), mpi=2)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert res.stdout.count("outputs: ") == 1
+    one, two = one_rank / "coupled", tmp_path / "coupled"
+    assert json.loads((two / "summary.json").read_text())["ranks"] == 2
+    assert (two / "series.csv").read_text() == (one / "series.csv").read_text()
+    assert (two / "rest.csv").read_text() == (one / "rest.csv").read_text()
+    for name in ("specimen.npz", "loading_start.npz", "final_packing.npz"):
+        with np.load(one / name) as a, np.load(two / name) as b:
+            for key in a.files:
+                np.testing.assert_array_equal(a[key], b[key], err_msg=f"{name}: {key}")
+
+
+def test_a_killed_loading_resumes_to_the_same_rows(one_rank, tmp_path):
+    sets = overrides({"output.checkpoint_interval": 0.05})
+    kill_during_loading([CASE, "--out", str(tmp_path), *sets], tmp_path, state="embedded_state.json")
+    res = cosim("run", CASE, "--out", str(tmp_path), *sets, "--resume")
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert "resumed the loading at row" in res.stdout
+    assert (tmp_path / "coupled" / "series.csv").read_text() == (one_rank / "coupled" / "series.csv").read_text()
+    resumed = json.loads((tmp_path / "coupled" / "summary.json").read_text())
+    assert resumed["rigid"] == json.loads((one_rank / "coupled" / "summary.json").read_text())["rigid"]
+
+
+def test_resume_without_a_checkpoint_is_one_message(tmp_path):
+    res = cosim("run", CASE, "--out", str(tmp_path), "--resume", *overrides())
+    assert res.returncode == 2 and "no embedded checkpoint" in res.stderr
