@@ -70,7 +70,7 @@ def points_in_tets(tets, count, rng):
 
 
 def tets_volume(tets) -> float:
-    """Σ |det(b − a, c − a, d − a)| / 6 over the tetrahedra (k, 4, 3) (m³)."""
+    """``Σ |det(b − a, c − a, d − a)| / 6`` over the tetrahedra (k, 4, 3) (m³)."""
     a, b, c, d = (tets[:, k] for k in range(4))
     return float(np.sum(np.abs(np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a))) / 6.0)
 

@@ -219,10 +219,10 @@ def fill(case, built, out_dir, name):
 # --------------------------------------------------------------------------- model
 def build_model(case, built, positions, radii):
     """The DEM engine (grains, rigid bodies first, then DEM walls, the interface last) and the
-    FE volumes with the interface; collective. Returns (footing.Model, rigid FacetMeshes)."""
+    FE volumes with the interface; collective. Returns (soil_model.Model, rigid FacetMeshes)."""
     from cosim.apps.coupled import check_replicas, time_steps
-    from cosim.apps.footing import Model
     from cosim.interface import Interface
+    from cosim.soil_model import Model
     from de_domain import Engine, Particles
     from de_domain.zone_fill import facet_mesh, tets_volume
     em, split = case.embedded, built["split"]
@@ -260,9 +260,9 @@ def rigid_bodies(case, split, ids):
 def resumed_model(case, case_path, out_dir, built, state):
     """The model at the last checkpoint of the loading (DEM engine with its rigid bodies, walls
     and interface facets; the FE volumes on the prepared mesh with their state); collective.
-    Returns (footing.Model, rigid FacetMeshes)."""
-    from cosim.apps.footing import Model, checkpointed_engine, restore_fe
+    Returns (soil_model.Model, rigid FacetMeshes)."""
     from cosim.interface import Interface
+    from cosim.soil_model import Model, checkpointed_engine, restore_fe
     em, split = case.embedded, built["split"]
     engine = checkpointed_engine(case_path, out_dir, state, STATE)
     bodies = engine.facets[:len(em.rigid)]  # rigid bodies first (build_model)
@@ -304,7 +304,7 @@ def columns(rigid):
 
 
 def rotation_matrix(axis_angle):
-    """R of a rotation by |θ| about θ/|θ| (Rodrigues' formula)."""
+    """R of a rotation by ``|θ|`` about ``θ / |θ|`` (Rodrigues' formula)."""
     theta = float(np.linalg.norm(axis_angle))
     if theta == 0.0:
         return np.eye(3)
@@ -328,8 +328,8 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
     series.csv; a checkpoint every output.checkpoint_interval (after a row), from which
     ``resume`` continues; returns the series (rank 0)."""
     from cosim.apps import coupled as coupled_app
-    from cosim.apps.footing import save_checkpoint
     from cosim.lab.shear_report import read_series
+    from cosim.soil_model import save_checkpoint, unbalanced
     from de_domain.io import write_frame
     from fe_domain.output import FieldWriter
     em = case.embedded
@@ -367,7 +367,7 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
             mesh.reset_impulse()
             row += [float(np.linalg.norm(body.velocity)) * t, float(np.linalg.norm(body.angular_velocity)) * t,
                     *force, *moment]
-        row += [*(model.take_interface_impulse() / elapsed), _unbalanced(model), model.engine.step_count]
+        row += [*(model.take_interface_impulse() / elapsed), unbalanced(model), model.engine.step_count]
         if rows is not None:
             rows.append(row)
         if k % frame_every == 0 or k == em.rows:
@@ -395,14 +395,9 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
     return read_series(out_dir / "series.csv")
 
 
-def _unbalanced(model):
-    from de_domain.diagnostics import unbalanced_force_ratio
-    return unbalanced_force_ratio(model.engine)
-
-
 # --------------------------------------------------------------------------- run
 def run(prepared):
-    from cosim.apps.footing import come_to_rest
+    from cosim.soil_model import come_to_rest
     case, em = prepared.case, prepared.case.embedded
     out_dir = Path(prepared.out_dir) / em.model
     if is_root():
@@ -472,7 +467,7 @@ def atomic_write_npz(path, **arrays):
 
 def rigid_summary(rigid, series, tail=0.2):
     """Per rigid body: its final displacement and rotation, and the force and moment (mean over
-    the last ``tail`` of the rows), with the lever arm |M × F| / |F|² about the pivot."""
+    the last ``tail`` of the rows), with the lever arm ``|M × F| / |F|²`` about the pivot."""
     out = {}
     n = max(1, int(round(tail * len(series["time"]))))
     for body in rigid:
@@ -494,7 +489,7 @@ def _plt():
 
 
 def plot_rigid_forces(curves, rigid, path, title):
-    """|F| of each rigid body against its displacement (or rotation), one line per model."""
+    """``|F|`` of each rigid body against its displacement (or rotation), one line per model."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     for label, series in curves.items():
@@ -514,7 +509,7 @@ def plot_rigid_forces(curves, rigid, path, title):
 
 
 def plot_section(before, after, path, title):
-    """The grains seen along y (x–z), coloured by |Δx| during the loading."""
+    """The grains seen along y (x–z), coloured by ``|Δx|`` during the loading."""
     plt = _plt()
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle

@@ -54,14 +54,19 @@ from cosim.outputs import (
     ProgressLine,
     PvdCollection,
     atomic_write_text,
-    commit_checkpoint,
     compilation_seconds,
     is_root,
     mpi_comm,
-    save_engine_checkpoint,
     say,
-    staged,
     write_run_metadata,
+)
+from cosim.soil_model import (
+    Model,
+    checkpointed_engine,
+    come_to_rest,
+    restore_fe,
+    save_checkpoint,
+    unbalanced,
 )
 from cosim.specimen import SpecimenBox, curve_of, make_specimen, read_specimen
 
@@ -69,8 +74,6 @@ SETTLEMENT_LEVELS = (0.02, 0.05, 0.10)  # s/B at which the bearing pressure is r
 MEAN_RANGE = (0.01, 0.10)  # s/B over which the mean bearing pressure is reported
 COLUMNS = ["time", "settlement", "settlement_ratio", "footing_force_z", "bearing_pressure",
            "interface_force_z", "unbalanced_force_ratio", "step"]
-REST_COLUMNS = ["time", "interface_force_z", "grain_weight", "unbalanced_force_ratio"]
-REST_CHECK_TIME = 2e-3  # s of simulated time between the rest checks
 FRAMES = 5  # ParaView frames over the loading
 STATE = "footing_state.json"  # the loading loop's state at the last checkpoint (with checkpoint.npz)
 LOADING_START = "loading_start.npz"  # every grain's position (and FE node's displacement) when the loading began
@@ -196,72 +199,6 @@ def _read_inputs(case, case_path):
 
 
 # --------------------------------------------------------------------------- models
-@dataclass
-class Model:
-    """A built model: the DEM engine (grains, walls, footing = ``engine.facets[0]``), and for
-    the coupled one the FE solid and the interface (the engine's last facet mesh)."""
-    kind: str
-    engine: object
-    footing: object
-    surface: float              # z of the soil surface (the generation plate's height)
-    solid: object = None
-    interface: object = None
-    subcycles: int = 1
-    soil_density: float = None  # kg/m³ of the FE soil (coupled)
-    stepper: object = None      # coupled: the FE steps (cosim.compiled_coupling.CoupledStepper)
-
-    def __post_init__(self):
-        # coupled: one DEM window per FE step, the sorted copies stay between windows
-        self.engine.keep_sorted = self.solid is not None
-        self.engine.wall_forces_each_run = self.solid is None  # coupled: nothing reads them between windows
-        if self.solid is not None:
-            from cosim.compiled_coupling import CoupledStepper
-            self.stepper = CoupledStepper(self.solid, self.engine, self.interface, self.subcycles)
-
-    @property
-    def time(self):
-        return self.engine.time
-
-    def advance(self, seconds):
-        """Advance by about ``seconds``: whole FE steps (coupled) or DEM steps."""
-        from cosim.apps import coupled as coupled_app
-        from cosim.apps import dem as dem_app
-        if self.solid is None:
-            dem_app.advance(self.engine, max(1, int(round(seconds / self.engine.dt))))
-            return
-        self.stepper.run(max(1, int(round(seconds / self.solid.dt))), coupled_app.coupled_step)
-
-    def take_interface_impulse(self):
-        """The impulse (N s) the grains gave the interface since the last call (0 for all-DEM)."""
-        if self.stepper is None:
-            return np.zeros(3)
-        impulse = self.stepper.window_impulse.copy()
-        self.stepper.window_impulse[:] = 0.0
-        return impulse
-
-    def interface_force(self):
-        """Force (N) the grains exert on the interface over the last FE step (0 for all-DEM)."""
-        if self.interface is None:
-            return np.zeros(3)
-        return self.interface.facets.vertex_impulse.sum(axis=0) / self.solid.dt
-
-    def support_force(self):
-        """Σ of the forces (N) the grains exerted on every wall and facet mesh (the interface's
-        from its last FE step's impulse) over the last step; the same on every rank."""
-        total = sum((w.force for w in self.engine.walls), np.zeros(3))
-        for mesh in self.engine.facets:
-            total = total + (self.interface_force() if self.interface is not None and mesh is self.interface.facets
-                             else mesh.force)
-        return total
-
-    def grain_weight(self):
-        """Σ m ``|g|`` of the grains (N), over all ranks."""
-        from de_domain.comm import sum_in_rank_order
-        p = self.engine.particles
-        mass = np.array([np.sum(p.mass[p.owned])])
-        return float(sum_in_rank_order(mpi_comm(), mass)[0]) * float(np.linalg.norm(self.engine.gravity))
-
-
 def build_model(case, grains, height, mesh=None):
     """The model ``footing.model`` of the case with the specimen ``grains`` = (positions,
     radii) of height ``height`` (generation-box coordinates), and for the coupled model the
@@ -433,41 +370,6 @@ def self_weight_stress(case, depth):
     return bulk_density(case) * float(np.linalg.norm(case.dem.gravity)) * depth
 
 
-def _unbalanced(model):
-    from de_domain.diagnostics import unbalanced_force_ratio
-    return unbalanced_force_ratio(model.engine)  # collective
-
-
-def come_to_rest(model, out_dir, name, threshold, max_time):
-    """Run under gravity until the unbalanced force ratio is below ``threshold`` (checked every
-    REST_CHECK_TIME, for at most ``max_time`` s); ``rest.csv``; returns the balance at rest: the
-    interface's vertical force, and every support's (walls, facets, interface) over the grains'
-    weight. Collective."""
-    weight = model.grain_weight()
-    rows = CsvSeries(out_dir / "rest.csv", REST_COLUMNS) if is_root() else None
-    start = model.time
-    while True:
-        model.advance(REST_CHECK_TIME)
-        ufr = _unbalanced(model)
-        force = model.interface_force()
-        if rows is not None:
-            rows.append([model.time, force[2], weight, ufr])
-        if ufr < threshold or model.time - start >= max_time:
-            break
-    if rows is not None:
-        rows.close()
-    force = model.interface_force()
-    at_rest = bool(ufr < threshold)
-    balance = -force[2] / weight if model.interface is not None else None
-    supports = -model.support_force()[2] / weight
-    say(f"[{name}] {'at rest' if at_rest else 'NOT at rest'} after {model.time - start:.3f} s: unbalanced force "
-        f"ratio {ufr:.2e}" + (f", interface force / grain weight = {balance:.4f}" if balance is not None else "")
-        + f", all supports' vertical force / grain weight = {supports:.4f}")
-    return {"at_rest": at_rest, "rest_time": model.time - start, "unbalanced_force_ratio": ufr,
-            "grain_weight_N": weight, "interface_force_z_N": float(force[2]),
-            "interface_force_over_weight": balance, "support_force_over_weight": supports}
-
-
 def load(case, model, out_dir, name, state, resume=False):
     """Push the footing down at footing.velocity to the final settlement; series.csv rows;
     a checkpoint every output.checkpoint_interval (after a row), from which ``resume``
@@ -525,7 +427,7 @@ def load(case, model, out_dir, name, state, resume=False):
         interface_force = model.take_interface_impulse() / elapsed  # over the same interval as the footing's
         settlement = z0 - float(footing.vertices[:, 2].mean())
         row = [model.time, settlement, settlement / B, force[2], force[2] / (B * ly), interface_force[2],
-               _unbalanced(model), model.engine.step_count]
+               unbalanced(model), model.engine.step_count]
         if rows is not None:
             rows.append(row)
         if k % frame_every == 0 or k == ft.rows:
@@ -539,7 +441,7 @@ def load(case, model, out_dir, name, state, resume=False):
         if k < ft.rows and mpi_comm().bcast(due, root=0):  # rank 0's clock decides for all
             now = time.perf_counter()
             save_checkpoint(out_dir, model, {**state, "row": k, "z0": z0,
-                                              "loading_before_s": state["loading_before_s"] + now - t_entry})
+                                              "loading_before_s": state["loading_before_s"] + now - t_entry}, STATE)
             last_checkpoint = now
     progress.update(ft.rows, model.time, force=True)
     footing.velocity = np.zeros(3)
@@ -585,56 +487,11 @@ def seat_footing(model, area, pressure, interval, limit, name):
     return {"pressure_Pa": float(q), "travel_m": travel}
 
 
-def save_checkpoint(out_dir, model, state, state_file=STATE):
-    """The DEM (and, coupled, the FE with the impulse in transit: ``coupled.stage_checkpoint``)
-    and the loading loop's ``state`` (JSON in ``state_file``, rank 0), committed together
-    (:func:`cosim.outputs.commit_checkpoint`); collective."""
-    from cosim.apps import coupled as coupled_app
-    if model.solid is not None:
-        finals = coupled_app.stage_checkpoint(out_dir, model.solid, model.engine, model.interface)
-    else:
-        save_engine_checkpoint(model.engine, staged(out_dir / "checkpoint.npz"))
-        finals = [out_dir / "checkpoint.npz"] if is_root() else []
-    if is_root():
-        atomic_write_text(staged(out_dir / state_file),
-                          json.dumps({**state, "step": model.engine.step_count}, indent=1))
-        finals.append(out_dir / state_file)
-    commit_checkpoint(out_dir, finals)
-
-
-def checkpointed_engine(case_path, out_dir, state, state_file=STATE):
-    """The DEM engine of the last checkpoint (any rank count), checked against the loop's
-    ``state``; collective."""
-    from cosim.apps import dem as dem_app
-    comm = mpi_comm()
-    engine = dem_app.load_checkpoint(case_path, out_dir / "checkpoint.npz", comm if comm.size > 1 else None)
-    if engine.step_count != state["step"]:
-        raise CaseError(out_dir / state_file, "step", state["step"],
-                        f"does not match the checkpoint (step {engine.step_count}); run without --resume")
-    return engine
-
-
-def restore_fe(solid, interface, engine, case_path, out_dir):
-    """The FE state of the last checkpoint into ``solid`` (built afresh on the prepared mesh),
-    the interface tied to the engine's last facet mesh, and the interface force in transit
-    made again from the saved impulse; collective."""
-    from cosim.apps import coupled as coupled_app
-    from cosim.apps import fe as fe_app
-    fe_state = fe_app.restore_checkpoint(solid, case_path, out_dir, coupled_app.FE_CHECKPOINT_STEM)
-    if abs(engine.time - solid.time) > 0.5 * engine.dt:  # files of two runs mixed by hand
-        raise CaseError(case_path, "--resume", str(out_dir / "checkpoint.npz"),
-                        "the DEM and FE checkpoints are of different instants; run without --resume")
-    if "interface_held" in fe_state:
-        interface.held[:] = fe_state["interface_held"]
-    interface.facets = engine.facets[-1]  # the interface is the last facet mesh
-    interface.receive_forces(solid.dt)
-
-
 def resumed_model(case, case_path, out_dir, built, state):
     """The model at the last checkpoint of the loading: the DEM engine (grains, walls, footing,
     interface facets with their impulse) and, coupled, the FE soil on the prepared mesh with its
     state and the interface force in transit; collective."""
-    engine = checkpointed_engine(case_path, out_dir, state)
+    engine = checkpointed_engine(case_path, out_dir, state, STATE)
     if case.footing.model == "dem":
         return Model("dem", engine, engine.facets[0], state["surface"])
     _, ids = _material_ids(case)

@@ -46,3 +46,19 @@ def test_the_run_writes_what_a_user_opens(coupled):
     for name in ("load_displacement.png", "displacement_section.png", "particles.pvd", "fields.xdmf",
                  "specimen.npz", "final_packing.npz", "rest.csv"):
         assert (coupled / name).exists(), name
+
+
+def test_a_rigid_body_rotates_about_its_pivot_and_translates():
+    """place_body: the reference vertices rotated by ω t about the pivot, then moved by v t; their
+    velocities v + ω × (x − c(t)), c the pivot moved with the body (closed form: a quarter turn)."""
+    from types import SimpleNamespace
+
+    from cosim.apps.embedded import place_body
+    from de_domain import FacetMesh
+    reference = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
+    mesh = FacetMesh(reference.copy(), [[0, 1, 2]])
+    body = SimpleNamespace(pivot=[0.0, 0.0, 0.0], velocity=[0.5, 0.0, 0.0], angular_velocity=[0.0, np.pi / 2, 0.0])
+    place_body(mesh, reference, body, 1.0)   # a quarter turn about +y: (x, z) -> (z, -x)
+    assert np.allclose(mesh.vertices, [[0.5, 0, 0], [1.5, 0, 0], [1.5, 0, -1]], atol=1e-12)
+    expected = [0.5, 0, 0] + np.cross([0, np.pi / 2, 0], mesh.vertices - [0.5, 0, 0])
+    assert np.allclose(mesh.vertex_velocity, expected, atol=1e-12)
