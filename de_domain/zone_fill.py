@@ -26,7 +26,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from de_domain.deposition import GenerationSettings, _critical_dt_all, _materials, _start_friction
+from de_domain.deposition import (
+    GenerationSettings,
+    _critical_dt_all,
+    _materials,
+    _motion,
+    _start_friction,
+    _unbalanced,
+)
 from de_domain.packing import insert_spheres
 
 
@@ -258,11 +265,6 @@ def _set_lid_velocity(engine, walls, velocity):
         m.velocity = velocity
 
 
-def _unbalanced(engine):
-    from de_domain.diagnostics import unbalanced_force_ratio
-    return unbalanced_force_ratio(engine)
-
-
 def _rest(engine, s):
     """Run until the unbalanced force ratio is below ``s.unbalanced_force`` (checked every
     ``s.check_every`` steps, at most ``s.max_steps_per_layer``); returns the steps taken."""
@@ -274,7 +276,3 @@ def _rest(engine, s):
             break
     return n
 
-
-def _motion(engine):
-    grains = engine.global_particles()
-    return grains.pos.copy(), grains.vel.copy(), grains.angvel.copy()
