@@ -15,8 +15,9 @@ The run, in both models:
    them, a lid closes each free surface and is lifted and removed at the end;
 2. **Rest** — the model (FE volumes under gravity, with local damping) comes to rest; the
    vertical force on every support over the grains' weight is reported (``rest.csv``);
-3. **Loading** — each rigid body moves with its velocity and rotates about its pivot for
-   ``embedded.loading_time``; ``series.csv`` has per row and body the displacement, rotation,
+3. **Loading** — each rigid body is held for one row (row 0: the forces at rest), then moves
+   with its velocity and rotates about its pivot for ``embedded.loading_time``; ``series.csv``
+   has per row and body the displacement, rotation,
    the force the grains exert on it and its moment about the pivot (impulses over the row's
    interval / the interval), and the interface force;
 4. **Report** — ``summary.json``, ``load_displacement.png``, ``displacement_section.png`` (the
@@ -324,9 +325,10 @@ def place_body(mesh, reference, body, elapsed):
 
 
 def load(case, model, bodies, references, out_dir, name, state, resume=False):
-    """Move the rigid bodies (from their ``references`` vertices) for embedded.loading_time;
-    series.csv; a checkpoint every output.checkpoint_interval (after a row), from which
-    ``resume`` continues; returns the series (rank 0)."""
+    """Hold the rigid bodies for one row (row 0: the forces at rest), then move them (from their
+    ``references`` vertices) for embedded.loading_time; series.csv; a checkpoint every
+    output.checkpoint_interval (after a row), from which ``resume`` continues; returns the
+    series (rank 0)."""
     from cosim.apps import coupled as coupled_app
     from cosim.lab.shear_report import read_series
     from cosim.soil_model import save_checkpoint, unbalanced
@@ -337,11 +339,10 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
     if resume:
         first_row, start = state["row"] + 1, state["loading_start_time"]
     else:
-        first_row, start = 1, model.time
+        first_row, start = 0, None  # row 0: the bodies held, the thrust at rest; they move from its end
         for mesh in bodies:
             mesh.reset_impulse()
         model.take_interface_impulse()  # the rest phase's is not the loading's
-        state["loading_start_time"] = start
     resume_time = model.time if resume else None
     rows = CsvSeries(out_dir / "series.csv", columns(em.rigid), resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
@@ -355,9 +356,13 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
     t_entry = last_checkpoint = time.perf_counter()
     for k in range(first_row, em.rows + 1):
         for mesh, reference, body in zip(bodies, references, em.rigid, strict=True):
-            place_body(mesh, reference, body, model.time - start)
+            place_body(mesh, reference, body, 0.0 if k == 0 else model.time - start)
+            if k == 0:
+                mesh.velocity = np.zeros(3)
         model.advance(row_time)
         elapsed, t_last = model.time - t_last, model.time
+        if k == 0:
+            start = state["loading_start_time"] = model.time
         row = [model.time]
         for mesh, body in zip(bodies, em.rigid, strict=True):
             t = model.time - start
