@@ -82,6 +82,15 @@ def atomic_write_text(path, text):
     os.replace(tmp, path)
 
 
+def atomic_write_npz(path, **arrays):
+    """``np.savez`` to a temporary file renamed over ``path``: never a half-written file."""
+    import numpy as np
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
 def save_engine_checkpoint(engine, path):
     """``engine.save_checkpoint`` to a temporary file, then rename: a crash never leaves
     a broken checkpoint. A distributed engine's: collective, rank 0 writes and renames."""

@@ -41,6 +41,7 @@ from cosim.outputs import (
     CsvSeries,
     ProgressLine,
     PvdCollection,
+    atomic_write_npz,
     atomic_write_text,
     compilation_seconds,
     is_root,
@@ -183,9 +184,7 @@ def fill(case, built, out_dir, name):
     volume = tets_volume(split.zone.tets)
     rng = np.random.default_rng(case.case.seed)
     diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, volume), rng)
-    sand = mats[ids[case.embedded.sand_material]]
-    if sp.deposition_material is not None:
-        sand = mats[ids[sp.deposition_material]] if sp.deposition_material in ids else sand
+    sand = mats[ids[sp.deposition_material or case.embedded.sand_material]]  # the grains' material while filled
     height = float(np.ptp(split.zone.tets[:, :, 2]))
     weight_stress = sand.density / (1.0 + sp.void_ratio) * float(np.linalg.norm(case.dem.gravity)) * height
     settings = GenerationSettings(
@@ -463,13 +462,6 @@ def run(prepared):
     say(f"[{name}] done: wall-clock {total:.0f} s, of which {compiling:.0f} s compiling (first run only)")
 
 
-def atomic_write_npz(path, **arrays):
-    """``np.savez`` to a temporary file renamed over ``path``: never a half-written file."""
-    tmp = path.with_name(path.stem + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    tmp.replace(path)
-
-
 def rigid_summary(rigid, series, tail=0.2):
     """Per rigid body: its final displacement and rotation, and the force and moment (mean over
     the last ``tail`` of the rows), with the lever arm ``|M × F| / |F|²`` about the pivot."""
@@ -486,16 +478,9 @@ def rigid_summary(rigid, series, tail=0.2):
     return out
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
 def plot_rigid_forces(curves, rigid, path, title):
     """``|F|`` of each rigid body against its displacement (or rotation), one line per model."""
-    plt = _plt()
+    from cosim.plots import plt
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     for label, series in curves.items():
         for body in rigid:
@@ -515,9 +500,10 @@ def plot_rigid_forces(curves, rigid, path, title):
 
 def plot_section(before, after, path, title):
     """The grains seen along y (x–z), coloured by ``|Δx|`` during the loading."""
-    plt = _plt()
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle
+
+    from cosim.plots import plt
     disp = np.linalg.norm(after.pos - before, axis=1)
     order = np.argsort(after.pos[:, 1])[::-1]
     fig, ax = plt.subplots(figsize=(8.0, 5.0))

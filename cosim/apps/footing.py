@@ -53,6 +53,7 @@ from cosim.outputs import (
     CsvSeries,
     ProgressLine,
     PvdCollection,
+    atomic_write_npz,
     atomic_write_text,
     compilation_seconds,
     is_root,
@@ -404,9 +405,8 @@ def load(case, model, out_dir, name, state, resume=False):
         start_grains = grains.pos.copy()
         fe_start = fe_nodes(model.solid)[1] if model.solid is not None else None  # collective
         if is_root():
-            tmp = start_path.with_name(start_path.stem + ".tmp.npz")
-            np.savez(tmp, position=start_grains, **({} if fe_start is None else {"fe_displacement": fe_start}))
-            tmp.replace(start_path)
+            atomic_write_npz(start_path, position=start_grains,
+                             **({} if fe_start is None else {"fe_displacement": fe_start}))
     resume_time = model.time if resume else None
     rows = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
