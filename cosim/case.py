@@ -469,6 +469,13 @@ class RigidBody(_Section):
                                    description="rotation rate about `pivot` during the loading [rad/s]")
     pivot: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0],
                         description="the point it rotates about and moments are taken about [m]")
+    seating_pressure: Optional[float] = Field(
+        default=None, ge=0,
+        description="place the body on the grains: it stands clear of them while they are filled in and come to "
+                    "rest, then moves along its velocity to the first grain and on until it carries this pressure "
+                    "(its force against the motion over its area), and the loading counts from there, as a plate "
+                    "load test zeroes its gauge under a seating load; unset: the body is where the model puts it "
+                    "and holds the grains while they are filled in [Pa]")
 
 
 class EmbeddedSection(_Section):
@@ -1186,6 +1193,10 @@ def _check_footing(path, case):
     if sp.source == "file":
         _check_packing_file(path, "specimen.file", sp.file)
         return  # the packing is checked against the zone (or block) when read
+    if sp.method != "radius_expansion":
+        raise CaseError(path, "specimen.method", sp.method,
+                        "a footing's grains are filled by 'radius_expansion' (grains grown inside the zone's faces, "
+                        "the same sand in the zone and the all-DEM block; or give a packing: source = 'file')")
     d_max = _largest_grain(path, sp)
     for key, size in (("zone.width", zone.width), ("zone.depth", zone.depth), ("soil.thickness", soil.thickness)):
         if size < GRAINS_ACROSS * d_max * (1 - 1e-9):
@@ -1208,16 +1219,19 @@ def _check_embedded(path, case):
     if dem.particles is not None or dem.walls:
         raise CaseError(path, "dem.particles / dem.walls", "present",
                         "an embedded case takes its grains from [specimen] and its walls from the model; remove them")
-    if sp.source != "generate" or sp.method != "radius_expansion":
-        raise CaseError(path, "specimen.method", sp.method if sp.source == "generate" else sp.source,
-                        "an embedded zone is filled by 'radius_expansion' (source = 'generate'): grains grown "
-                        "inside the zone's faces")
+    if sp.source == "file":
+        _check_packing_file(path, "specimen.file", sp.file)  # its grains are checked against the model when read
+    elif sp.method != "radius_expansion":
+        raise CaseError(path, "specimen.method", sp.method,
+                        "an embedded zone is filled by 'radius_expansion': grains grown inside the zone's faces "
+                        "(or give a packing: source = 'file')")
     keys = [("embedded.sand_material", em.sand_material), ("embedded.interface_material", em.interface_material),
             ("embedded.lid_material", em.lid_material)]
     keys += [(f"embedded.surfaces[{i}].material", s.material) for i, s in enumerate(em.surfaces) if s.material]
     keys += [(f"embedded.rigid[{i}].material", r.material) for i, r in enumerate(em.rigid)]
-    _check_materials(path, dem, keys + _deposition_material(sp))
-    _largest_grain(path, sp)
+    _check_materials(path, dem, keys + (_deposition_material(sp) if sp.source == "generate" else []))
+    if sp.source == "generate":
+        _largest_grain(path, sp)
     if not em.mesh.endswith((".geo", ".msh")):
         raise CaseError(path, "embedded.mesh", em.mesh, "a gmsh model: a .geo source or a .msh file")
     if em.mesh.endswith(".geo") and em.mesh_size is None:
@@ -1233,6 +1247,9 @@ def _check_embedded(path, case):
     for i, name in enumerate(names):
         if names.index(name) != i:
             raise CaseError(path, f"embedded.rigid[{i}].name", name, "two rigid bodies of one name")
+        if em.rigid[i].seating_pressure is not None and not any(em.rigid[i].velocity):
+            raise CaseError(path, f"embedded.rigid[{i}].seating_pressure", em.rigid[i].seating_pressure,
+                            "a body placed on the grains is seated along its velocity: give it a velocity")
     for i, v in enumerate(em.volumes):
         needs = ("E", "nu", "rho") if v.role == "structure" else ("E", "nu") if v.role == "soil" else ()
         for key in needs:

@@ -171,3 +171,17 @@ def restore_fe(solid, interface, engine, case_path, out_dir):
         interface.held[:] = fe_state["interface_held"]
     interface.facets = engine.facets[-1]  # the interface is the last facet mesh
     interface.receive_forces(solid.dt)
+
+
+def fe_nodes(solid):
+    """(coordinates, displacement) of every FE node, in mesh-input order, on rank 0 (None on
+    the others); collective over the FE's ranks."""
+    owned = slice(0, solid.n_owned_nodes)
+    rows = np.hstack([solid.input_node_index[owned, None].astype(np.float64), solid.node_coordinates[owned],
+                      solid.displacement[owned]])
+    parts = solid.comm.gather(rows, root=0)
+    if not is_root():
+        return None, None
+    rows = np.concatenate(parts)
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    return rows[:, 1:4], rows[:, 4:7]

@@ -49,13 +49,14 @@ class ContainerWall:
 @dataclass
 class FilledZone:
     """The grains (centres, radii), the void ratio (V − V_s) / V_s over the volume (V_s of the
-    grains whose centre is in it: below the lid's plane once the lid is gone), the steps taken
-    and the log."""
+    grains whose centre is in it: below the lid's plane once the lid is gone), the steps taken,
+    the log, and the void ratio of the bulk, away from the faces, where grains pack looser."""
     positions: np.ndarray
     radii: np.ndarray
     void_ratio: float
     steps: int
     log: list = field(default_factory=list)
+    bulk_void_ratio: float = None  # :func:`bulk_void_ratio`, one d_max from the faces; None if nothing is that far
 
 
 def points_in_tets(tets, count, rng):
@@ -74,6 +75,44 @@ def points_in_tets(tets, count, rng):
     s[under], u[under] = 1.0 - t[under] - u[under], s_old[under] + t[under] + u[under] - 1.0
     w = np.stack([1.0 - s - t - u, s, t, u], axis=1)
     return np.einsum("nk,nkd->nd", w, tets[which])
+
+
+def inside_tets(points, tets, tolerance=1e-9) -> np.ndarray:
+    """Whether each point (n, 3) lies in the union of the tetrahedra (k, 4, 3): its barycentric
+    coordinates in one of them all ≥ −``tolerance``; the candidates are the tetrahedra whose
+    centroid is within the largest centroid-to-corner distance (a k-d tree)."""
+    from scipy.spatial import cKDTree
+    points = np.asarray(points, float)
+    centroid = tets.mean(axis=1)
+    reach = float(np.linalg.norm(tets - centroid[:, None], axis=2).max())
+    found = np.zeros(len(points), bool)
+    for i, candidates in enumerate(cKDTree(centroid).query_ball_point(points, reach)):
+        t = tets[candidates]
+        edges = np.transpose(t[:, 1:] - t[:, :1], (0, 2, 1))          # columns b − a, c − a, d − a
+        w = np.linalg.solve(edges, (points[i] - t[:, 0])[:, :, None])[:, :, 0]
+        found[i] = bool(np.any((w >= -tolerance).all(axis=1) & (w.sum(axis=1) <= 1.0 + tolerance)))
+    return found
+
+
+def bulk_void_ratio(tets, faces, positions, radii, margin, rng, samples=200_000):
+    """The void ratio (1 − φ) / φ of the volume's bulk: φ is the fraction of ``samples`` random
+    points of the tetrahedra, farther than ``margin`` from its ``faces``, that lie inside a
+    grain (Monte Carlo, standard error ≈ sqrt(φ (1 − φ) / n) on φ over the n points kept);
+    spheres pack looser within about a diameter of a wall, so the bulk is what a target void
+    ratio means. None when no point is that far from the faces."""
+    from scipy.spatial import cKDTree
+    points = points_in_tets(tets, samples, rng)
+    far, _ = cKDTree(sample_triangles(faces, 0.25 * margin)).query(points)
+    points = points[far > margin]
+    if len(points) == 0:
+        return None
+    near, which = cKDTree(positions).query(points, k=16, distance_upper_bound=float(radii.max()))
+    inside = np.zeros(len(points), bool)
+    for k in range(near.shape[1]):
+        hit = np.isfinite(near[:, k])
+        inside[hit] |= near[hit, k] < radii[which[hit, k]]
+    phi = float(inside.mean())
+    return (1.0 - phi) / phi if phi > 0 else None
 
 
 def tets_volume(tets) -> float:
@@ -107,6 +146,36 @@ def sample_triangles(triangles, spacing) -> np.ndarray:
         out.append((a[:, None] + w[None, :, :1] * (these[:, 1] - a)[:, None]
                     + w[None, :, 1:] * (these[:, 2] - a)[:, None]).reshape(-1, 3))
     return np.concatenate(out)
+
+
+def planar_walls(triangles, tets, material, tolerance=1e-9):
+    """The triangles (m, 3, 3) as plane walls where they can be: grouped by the plane each lies
+    in, a group becomes a PlaneWall of ``material`` (normal towards the grains) when the whole
+    grain volume ``tets`` lies on one side of its plane, so that the infinite plane touches no
+    grain the triangles would not (a plane contact costs less than a facet's). Returns (the
+    PlaneWalls, the triangles of the other groups (k, 3, 3)). ``tolerance``: relative to the
+    volume's size, how far from a plane a point may be and still lie in it."""
+    from de_domain import PlaneWall
+    t = np.asarray(triangles, float).reshape(-1, 3, 3)
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    corners = tets.reshape(-1, 3)
+    gap = tolerance * float(np.ptp(corners, axis=0).max())
+    planes, others = [], []
+    left = np.arange(len(t))
+    while len(left):
+        n = normal[left[0]]
+        offset = float(n @ t[left[0], 0])
+        same = (np.abs(normal[left] @ n) > 1.0 - tolerance) & (np.abs(t[left, 0] @ n - offset) < gap)
+        side = corners @ n - offset
+        if side.min() >= -gap:
+            planes.append(PlaneWall(offset * n, n, material))
+        elif side.max() <= gap:
+            planes.append(PlaneWall(offset * n, -n, material))
+        else:
+            others.append(t[left[same]])
+        left = left[~same]
+    return planes, np.concatenate(others) if others else np.zeros((0, 3, 3))
 
 
 def facet_mesh(triangles, material):
@@ -160,9 +229,14 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
         mats = materials(friction)
         p = Particles.from_spheres(pos, radii_now, np.zeros(len(radii_now), np.int32), mats, velocities=vel)
         p.angvel[:] = angvel
-        facets = [facet_mesh(w.triangles, 1 + k)
-                  for k, w in enumerate(walls) if with_lid or not w.lid]
-        return Engine(p, mats, facets=facets, contact_law=s.contact_law,
+        facets = [facet_mesh(w.triangles, 1 + k) for k, w in enumerate(walls) if w.lid and with_lid]  # lid first
+        planes = []
+        for k, w in enumerate(walls):
+            if not w.lid:
+                these, rest = planar_walls(w.triangles, tets, 1 + k)
+                planes += these
+                facets += [facet_mesh(rest, 1 + k)] if len(rest) else []
+        return Engine(p, mats, walls=planes, facets=facets, contact_law=s.contact_law,
                       gravity=tuple(np.asarray(gravity, float) / s.density_scale), dt=dt,
                       safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm)
 
@@ -209,10 +283,11 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
         inside = pos @ lid_normal <= plane.max()
     solid_inside = float(np.sum(4.0 / 3.0 * np.pi * radii[inside] ** 3))
     e = (volume - solid_inside) / solid_inside
+    bulk = bulk_void_ratio(tets, faces, pos, radii, 2.0 * float(radii.max()), np.random.default_rng(s.seed))
     say(f"zone fill: {len(radii)} grains at rest under gravity, e = {e:.4f} over the zone's volume (the "
         f"{int(inside.sum())} grains with their centre in it; {(volume - solid) / solid:.4f} with all of them), "
-        f"{steps} steps")
-    return FilledZone(pos, radii.copy(), e, steps, messages)
+        f"{'n/a' if bulk is None else f'{bulk:.4f}'} in its bulk (one d_max from its faces), {steps} steps")
+    return FilledZone(pos, radii.copy(), e, steps, messages, bulk)
 
 
 def _free_first(candidates, blocked):
@@ -249,8 +324,8 @@ def _outward(lid, centre):
 
 
 def _lid_facets(engine, walls):
-    """The engine's facet meshes of the lid walls (built in the order of ``walls``)."""
-    return [m for m, w in zip(engine.facets, walls, strict=False) if w.lid]
+    """The engine's facet meshes of the lid walls (the first, in the order of ``walls``)."""
+    return engine.facets[:sum(w.lid for w in walls)]
 
 
 def _lid_stress(engine, walls, normal, area):

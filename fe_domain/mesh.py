@@ -325,7 +325,7 @@ def msh_to_vtu(msh_path: str | Path, out_path: str | Path) -> Path:
 def _generate(path: Path, mesh_size: float, parameters: dict[str, float] | None) -> None:
     """Open ``path`` in the (initialised) gmsh session and mesh it in 3D: elements of at most
     ``mesh_size`` and at least half of it, unless the source sets ``Mesh.MeshSizeMin`` itself
-    (a source with a size field that refines below ``mesh_size``, e.g. meshes/trench.geo)."""
+    (a source with a size field that refines below ``mesh_size``, e.g. meshes/strip_footing.geo)."""
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.onelab.clear()  # ONELAB values outlive gmsh.finalize(): drop the last file's
     for name, value in (parameters or {}).items():

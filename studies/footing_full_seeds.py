@@ -42,7 +42,7 @@ def run(seed, model, ranks):
         cmd = ["mpirun", "-n", str(ranks), "--bind-to", "none", sys.executable, "-m", "cosim.cli", "run", str(CASE),
                "--out", str(out), "--set", f"case.seed={seed}", "--set", f"footing.model=\"{model}\""]
         subprocess.run(cmd, check=True, cwd=ROOT, env={**os.environ, "NUMBA_NUM_THREADS": "1"})
-    return read_series(out / model / "series.csv"), json.loads(summary.read_text())
+    return read_series(out / model / "load_settlement.csv"), json.loads(summary.read_text())
 
 
 def levels(series):

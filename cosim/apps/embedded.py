@@ -86,6 +86,7 @@ def prepare(case, case_path, out_dir, resume):
     the same CaseError): groups exist with the right dimension, the zone has an interface with
     the FE, rollers are planes normal to an axis, the grain volumes are at least
     GRAINS_ACROSS of the largest grains thick."""
+    from cosim.apps import on_root
     from cosim.case import GRAINS_ACROSS
     from cosim.specimen import curve_of
     from de_domain.zone_fill import thickness
@@ -96,7 +97,7 @@ def prepare(case, case_path, out_dir, resume):
     found = (model_dir / STATE).exists() and (model_dir / "checkpoint.npz").exists()
     if resume and not mpi_comm().allreduce(int(found)):
         raise CaseError(case_path, "--resume", str(model_dir / "checkpoint.npz"),
-                        "no embedded checkpoint in the output folder (checkpoints start with the loading); "
+                        "no checkpoint of the loading in the output folder (checkpoints start with the loading); "
                         "run without --resume")
     roles = Roles.of(em)
     from cosim.apps.coupled import fe_communicator
@@ -118,14 +119,54 @@ def prepare(case, case_path, out_dir, resume):
             if axis is None:
                 raise CaseError(case_path, f"embedded.surfaces[{i}].fe", "roller",
                                 f"surface '{s.group}' is not a plane normal to x, y or z; use 'fixed'")
-    curve = curve_of(case.specimen)
-    d_max = float(curve.diameters[-1])
-    across = thickness(split.zone.tets, split.zone.faces, 0.1 * d_max, np.random.default_rng(0))
-    if across < GRAINS_ACROSS * d_max:
+    built = {"split": split}
+    if case.specimen.source == "file":
+        built["packing"] = mpi_comm().bcast(on_root(mpi_comm(), lambda: read_packing(case, case_path, split)), root=0)
+        d_max = 2.0 * float(built["packing"][1].max())
+    else:
+        built["curve"] = curve_of(case.specimen)
+        d_max = float(built["curve"].diameters[-1])
+    spacing = 0.1 * d_max  # the estimate's resolution
+    across = thickness(split.zone.tets, split.zone.faces, spacing, np.random.default_rng(0))
+    if across + spacing < GRAINS_ACROSS * d_max:
         raise CaseError(case_path, "embedded.volumes", roles.grains,
                         f"the grain volumes are {across * 1e3:.2f} mm thick at most: at least {GRAINS_ACROSS} of the "
                         f"largest grains ({GRAINS_ACROSS * d_max * 1e3:.2f} mm) are needed")
-    return {"split": split, "curve": curve}
+    return built
+
+
+def read_packing(case, case_path, split):
+    """(positions, radii) of ``specimen.file``, in the model's coordinates; every grain's centre
+    must lie in a grain volume, or within its radius of a free surface (a CaseError names the
+    first that does not)."""
+    from cosim.apps.dem import warn_overlaps
+    from cosim.case import resolve_path
+    from de_domain.packing import load_packing
+    from de_domain.zone_fill import inside_tets
+    sp = case.specimen
+    try:
+        pos, radii = load_packing(resolve_path(case_path, sp.file))
+    except Exception as exc:
+        raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
+    outside = ~inside_tets(pos, split.zone.tets)
+    roles = Roles.of(case.embedded)
+    free = [t for g, t in split.zone.free.items() if is_free_surface(roles, g)]
+    if free and outside.any():  # a grain may stand above a free surface by less than its radius
+        from scipy.spatial import cKDTree
+
+        from de_domain.zone_fill import sample_triangles
+        distance, _ = cKDTree(sample_triangles(np.concatenate(free), 0.1 * float(radii.min()))).query(pos[outside])
+        outside[outside] = distance > radii[outside]
+    outside = np.flatnonzero(outside)
+    if len(outside):
+        i = int(outside[0])
+        raise CaseError(case_path, "specimen.file", sp.file,
+                        f"{len(outside)} of its {len(radii)} grains lie outside the grain volumes "
+                        f"({', '.join(Roles.of(case.embedded).grains)}), the first at "
+                        f"{np.round(pos[i], 6).tolist()} m: "
+                        "a packing is given in the model's coordinates (as the specimen.npz a run writes)")
+    warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
+    return pos, radii
 
 
 def _key_of_group(em, name):
@@ -158,19 +199,28 @@ def _materials(case):
 def container(case, split, mats, ids):
     """The walls that hold the grains while they are filled in (:class:`ContainerWall`): the
     interface, and every free face of the zone by its surface's role — a rigid body's or a DEM
-    wall's material, else a lid of ``embedded.lid_material`` (a free surface)."""
+    wall's material, else a lid of ``embedded.lid_material`` (:func:`is_free_surface`)."""
     from de_domain.zone_fill import ContainerWall
     em, roles = case.embedded, Roles.of(case.embedded)
     rigid = {r.surface: r for r in roles.rigid}
     walls = [ContainerWall(split.zone.interface, mats[ids[em.interface_material]])] if len(split.zone.interface) else []
     for group, triangles in split.zone.free.items():
-        if group in rigid:
-            walls.append(ContainerWall(triangles, mats[ids[rigid[group].material]]))
-        elif group in roles.surfaces and roles.surfaces[group].dem == "wall":
-            walls.append(ContainerWall(triangles, mats[ids[roles.surfaces[group].material]]))
-        else:
+        if is_free_surface(roles, group):
             walls.append(ContainerWall(triangles, mats[ids[em.lid_material]], lid=True))
+        elif group in rigid:
+            walls.append(ContainerWall(triangles, mats[ids[rigid[group].material]]))
+        else:
+            walls.append(ContainerWall(triangles, mats[ids[roles.surfaces[group].material]]))
     return walls
+
+
+def is_free_surface(roles, group):
+    """Whether the zone's faces on surface ``group`` are a free surface once the grains are in:
+    neither a DEM wall nor a rigid body that holds the grains (one placed on them later, with a
+    ``seating_pressure``, is a free surface until then)."""
+    held = {r.surface for r in roles.rigid if r.seating_pressure is None}
+    wall = group in roles.surfaces and roles.surfaces[group].dem == "wall"
+    return group not in held and not wall
 
 
 def fill(case, built, out_dir, name):
@@ -182,6 +232,12 @@ def fill(case, built, out_dir, name):
     sp, split = case.specimen, built["split"]
     mats, ids = _materials(case)
     volume = tets_volume(split.zone.tets)
+    if "packing" in built:
+        positions, radii = built["packing"]
+        solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
+        say(f"[{name}] grains from {sp.file}: {len(radii)}, e = {(volume - solid) / solid:.4f} over the grain volumes")
+        return positions, radii, {"source": sp.file, "grains": len(radii), "void_ratio": (volume - solid) / solid,
+                                  "zone_volume_m3": volume, "wall_clock_s": 0.0}
     rng = np.random.default_rng(case.case.seed)
     diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, volume), rng)
     sand = mats[ids[sp.deposition_material or case.embedded.sand_material]]  # the grains' material while filled
@@ -206,55 +262,130 @@ def fill(case, built, out_dir, name):
     except ValueError as exc:
         raise RuntimeError(f"[{name}] {exc}") from None
     ok = abs(filled.void_ratio - sp.void_ratio) <= sp.tolerance
-    say(f"[{name}] grains: e = {filled.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
-        f"{'OK' if ok else 'MISSED'})")
+    bulk = "" if filled.bulk_void_ratio is None else \
+        f"; {filled.bulk_void_ratio:.4f} in its bulk, one d_max from its faces (spheres pack looser at a face)"
+    say(f"[{name}] grains: e = {filled.void_ratio:.4f} over the grain volume (target {sp.void_ratio} ± {sp.tolerance}: "
+        f"{'OK' if ok else 'MISSED'}){bulk}")
     if is_root():
         save_packing(out_dir / "specimen.npz", filled.positions, filled.radii, void_ratio=filled.void_ratio)
-    info = {"grains": len(filled.radii), "void_ratio": filled.void_ratio, "void_ratio_target": sp.void_ratio,
-            "void_ratio_within_tolerance": bool(ok), "zone_volume_m3": volume, "steps": filled.steps,
+    info = {"grains": len(filled.radii), "void_ratio": filled.void_ratio, "void_ratio_bulk": filled.bulk_void_ratio,
+            "void_ratio_target": sp.void_ratio, "void_ratio_within_tolerance": bool(ok), "zone_volume_m3": volume,
+            "steps": filled.steps,
             "wall_clock_s": time.perf_counter() - t0}
     return filled.positions, filled.radii, info
 
 
 # --------------------------------------------------------------------------- model
 def build_model(case, built, positions, radii):
-    """The DEM engine (grains, rigid bodies first, then DEM walls, the interface last) and the
+    """The DEM engine (grains; facets: rigid bodies first, then the DEM walls that are no plane,
+    the interface last; plane walls for the DEM walls that are (:func:`planar_walls`)) and the
     FE volumes with the interface; collective. Returns (soil_model.Model, rigid FacetMeshes)."""
     from cosim.apps.coupled import check_replicas, time_steps
     from cosim.interface import Interface
     from cosim.soil_model import Model
     from de_domain import Engine, Particles
-    from de_domain.zone_fill import facet_mesh, tets_volume
+    from de_domain.zone_fill import facet_mesh, planar_walls, tets_volume
     em, split = case.embedded, built["split"]
     roles = Roles.of(em)
     mats, ids = _materials(case)
     particles = Particles.from_spheres(positions, radii, np.full(len(radii), ids[em.sand_material], np.int32), mats)
     bodies = rigid_bodies(case, split, ids)
-    walls = [facet_mesh(split.zone.free[g], ids[s.material]) for g, s in roles.surfaces.items()
-             if s.dem == "wall" and g in split.zone.free]
+    for mesh, body in zip(bodies, em.rigid, strict=True):
+        if body.seating_pressure is not None:  # clear of the grains, by a grain, until it is seated (seat)
+            d = direction(body)
+            mesh.vertices += (gap_to_grains(mesh.vertices, d, positions, radii) - 2.0 * float(radii.max())) * d
+    planes, walls = [], []  # the DEM walls: planes where they can be, else facets
+    for group, s in roles.surfaces.items():
+        if s.dem == "wall" and group in split.zone.free:
+            these, rest = planar_walls(split.zone.free[group], split.zone.tets, ids[s.material])
+            planes += these
+            walls += [facet_mesh(rest, ids[s.material])] if len(rest) else []
     comm = mpi_comm() if mpi_comm().size > 1 else None
     dem = case.dem
     engine_args = dict(contact_law=dem.contact_law, gravity=dem.gravity, safety_factor=case.time.safety_factor,
                        local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
     surface = float(np.max(positions[:, 2] + radii))
     if split.fe is None:
-        engine = Engine(particles, mats, facets=bodies + walls, **engine_args)
+        engine = Engine(particles, mats, walls=planes, facets=bodies + walls, **engine_args)
         return Model(em.model, engine, None, surface), bodies
     sand = mats[ids[em.sand_material]]
     bulk = sand.density * float(np.sum(4.0 / 3.0 * np.pi * radii**3)) / tets_volume(split.zone.tets)
     solid = build_fe(case, split, roles, bulk)
     check_replicas(solid)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
-    engine = Engine(particles, mats, facets=bodies + walls + [interface.facets], **engine_args)
+    engine = Engine(particles, mats, walls=planes, facets=bodies + walls + [interface.facets], **engine_args)
     fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, em.subcycles)
     solid.dt, engine.dt = fe_dt, dem_dt
     return Model(em.model, engine, None, surface, solid, interface, n_sub, bulk), bodies
 
 
 def rigid_bodies(case, split, ids):
-    """The rigid bodies' facet meshes where the model puts them (before any loading)."""
+    """The rigid bodies' facet meshes where the model puts them."""
     from de_domain.zone_fill import facet_mesh
     return [facet_mesh(split.surfaces[r.surface], ids[r.material]) for r in case.embedded.rigid]
+
+
+def direction(body):
+    """The unit vector of a rigid body's velocity."""
+    v = np.asarray(body.velocity, float)
+    return v / np.linalg.norm(v)
+
+
+def gap_to_grains(vertices, direction, positions, radii):
+    """How far (m) a rigid body (its ``vertices``) moves along the unit ``direction`` before it
+    touches a grain: the least, over the grains whose projection on the plane normal to the
+    direction overlaps the body's bounding rectangle there (widened by their radius), of the
+    distance from the grain's surface to the body's leading plane ``max(x · direction)``;
+    negative when a grain already reaches past that plane. Exact for a flat body normal to its
+    motion (a footing, a plate), the first contact of its leading plane otherwise."""
+    lateral = np.linalg.svd(np.asarray(direction, float)[None, :])[2][1:]  # two unit vectors normal to it
+    body, grains = vertices @ lateral.T, positions @ lateral.T
+    under = np.all((grains + radii[:, None] > body.min(axis=0)) & (grains - radii[:, None] < body.max(axis=0)), axis=1)
+    if not under.any():
+        raise RuntimeError("no grain lies in the path of a rigid body placed on the grains (seating_pressure)")
+    return float(np.min(positions[under] @ direction - radii[under]) - np.max(vertices @ direction))
+
+
+def area(mesh):
+    """The total area of a facet mesh's triangles (m²)."""
+    t = mesh.vertices[mesh.triangles]
+    return 0.5 * float(np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+
+
+def seat(model, bodies, rigid, interval, loading_time, name):
+    """Place each body with a ``seating_pressure`` on the grains: move it along its velocity to
+    the first grain (:func:`gap_to_grains`), then on at its velocity until its force against the
+    motion over its area, averaged over ``interval`` s, reaches the seating pressure (within
+    the travel of its whole loading, ``|v|`` × ``loading_time``); it then
+    stops, and the loading counts from there. A loose grain on the surface carries almost
+    nothing while it is pushed into the grains below it; the seating load skips that travel in
+    both models alike. Returns {name: {"pressure_Pa", "travel_m"}}; collective."""
+    grains = model.engine.global_particles()  # collective
+    out = {}
+    for mesh, body in zip(bodies, rigid, strict=True):
+        if body.seating_pressure is None:
+            continue
+        d, v = direction(body), np.asarray(body.velocity, float)
+        limit = float(np.linalg.norm(v)) * loading_time
+        gap = gap_to_grains(mesh.vertices, d, grains.pos, grains.radius)
+        mesh.set_vertex_state(mesh.vertices + gap * d, np.tile(v, (len(mesh.vertices), 1)))
+        contact, surface, pressure = mesh.vertices.copy(), area(mesh), 0.0
+        while pressure < body.seating_pressure:
+            mesh.reset_impulse()
+            start = model.time
+            model.advance(interval)
+            pressure = float(-(mesh.vertex_impulse.sum(axis=0) @ d)) / (model.time - start) / surface
+            if float((mesh.vertices - contact)[0] @ d) > limit:
+                raise RuntimeError(f"[{name}] {body.name} did not reach its seating pressure "
+                                   f"{body.seating_pressure:.4g} Pa within its whole loading travel {limit:.4g} m "
+                                   f"(it carries {pressure:.4g} Pa): lower its seating_pressure")
+        mesh.velocity = np.zeros(3)
+        travel = float((mesh.vertices - contact)[0] @ d)
+        if body.seating_pressure > 0:
+            say(f"[{name}] {body.name} seated: {pressure / 1e3:.3f} kPa after {travel * 1e3:.3f} mm from the first "
+                f"contact (seating pressure {body.seating_pressure / 1e3:.3g} kPa); its displacement counts from here")
+        out[body.name] = {"pressure_Pa": pressure, "travel_m": travel}
+    return out
 
 
 def resumed_model(case, case_path, out_dir, built, state):
@@ -323,7 +454,7 @@ def place_body(mesh, reference, body, elapsed):
     mesh.set_vertex_state(positions, velocity + np.cross(omega, positions - centre))
 
 
-def load(case, model, bodies, references, out_dir, name, state, resume=False):
+def load(case, model, bodies, rigid, references, out_dir, name, state, resume=False):
     """Hold the rigid bodies for one row (row 0: the forces at rest), then move them (from their
     ``references`` vertices) for embedded.loading_time; series.csv; a checkpoint every
     output.checkpoint_interval (after a row), from which ``resume`` continues; returns the
@@ -343,7 +474,7 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
             mesh.reset_impulse()
         model.take_interface_impulse()  # the rest phase's is not the loading's
     resume_time = model.time if resume else None
-    rows = CsvSeries(out_dir / "series.csv", columns(em.rigid), resume_time) if is_root() else None
+    rows = CsvSeries(out_dir / "series.csv", columns(rigid), resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     fields = None
     if model.solid is not None and coupled_app.writes_fe_files(model.solid):
@@ -354,7 +485,7 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
     t_last = model.time
     t_entry = last_checkpoint = time.perf_counter()
     for k in range(first_row, em.rows + 1):
-        for mesh, reference, body in zip(bodies, references, em.rigid, strict=True):
+        for mesh, reference, body in zip(bodies, references, rigid, strict=True):
             place_body(mesh, reference, body, 0.0 if k == 0 else model.time - start)
             if k == 0:
                 mesh.velocity = np.zeros(3)
@@ -363,7 +494,7 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
         if k == 0:
             start = state["loading_start_time"] = model.time
         row = [model.time]
-        for mesh, body in zip(bodies, em.rigid, strict=True):
+        for mesh, body in zip(bodies, rigid, strict=True):
             t = model.time - start
             arm = mesh.vertices - (np.asarray(body.pivot) + np.asarray(body.velocity) * t)
             force = mesh.vertex_impulse.sum(axis=0) / elapsed
@@ -400,8 +531,40 @@ def load(case, model, bodies, references, out_dir, name, state, resume=False):
 
 
 # --------------------------------------------------------------------------- run
+@dataclass
+class Outcome:
+    """What a run leaves for its report (rank 0): the output folder, the loop's state, the
+    series, the rigid bodies as they moved (pivots with their seating offset), the model, the
+    grains at the loading's start (positions) and end, the FE nodes' coordinates and their
+    displacement during the loading (coupled; else None), the compilation seconds."""
+    out_dir: Path
+    state: dict
+    series: dict
+    rigid: list
+    model: object
+    start: np.ndarray
+    grains: object
+    fe_motion: tuple
+    compiling: float
+
+
 def run(prepared):
-    from cosim.soil_model import come_to_rest
+    """Fill, rest, seat, load (:func:`simulate`), then the report (:func:`report`)."""
+    outcome = simulate(prepared)
+    if outcome is not None:
+        report(prepared, outcome)
+
+
+def placed(rigid, offsets):
+    """The rigid bodies with their pivots moved by the seating ``offsets`` (m, one per body)."""
+    return [body.model_copy(update={"pivot": list(np.add(body.pivot, offset))})
+            for body, offset in zip(rigid, offsets, strict=True)]
+
+
+def simulate(prepared):
+    """The run up to its outputs of record (series.csv, rest.csv, frames, fields, packings,
+    checkpoints); collective. Returns the :class:`Outcome` on rank 0, None on the others."""
+    from cosim.soil_model import come_to_rest, fe_nodes
     case, em = prepared.case, prepared.case.embedded
     out_dir = Path(prepared.out_dir) / em.model
     if is_root():
@@ -411,7 +574,7 @@ def run(prepared):
     name = f"{case.case.name}/{em.model}"
     compiling_before = compilation_seconds()
     _, ids = _materials(case)
-    references = [b.vertices.copy() for b in rigid_bodies(case, prepared.built["split"], ids)]
+    unmoved = [b.vertices.copy() for b in rigid_bodies(case, prepared.built["split"], ids)]
     if prepared.resume:
         state = json.loads((out_dir / STATE).read_text())
         model, bodies = resumed_model(case, prepared.case_path, out_dir, prepared.built, state)
@@ -429,37 +592,71 @@ def run(prepared):
                f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
         t0 = time.perf_counter()
         rest = come_to_rest(model, out_dir, name, em.rest_unbalanced_force, em.max_rest_time)
+        seating = seat(model, bodies, em.rigid, em.loading_time / em.rows / 4, em.loading_time, name)
         clock["rest_s"] = time.perf_counter() - t0
-        state = {"fill": fill_info, "rest": rest, "clock": clock, "grains": len(radii), "surface": model.surface,
-                 "soil_density": model.soil_density, "row": 0, "loading_before_s": 0.0,
-                 "compilation_before_s": 0.0}
+        cells = model.solid.comm.allreduce(model.solid.mesh.topology.index_map(3).size_local) \
+            if model.solid is not None else 0  # collective
+        state = {"fill": fill_info, "rest": rest, "seating": seating, "clock": clock, "grains": len(radii),
+                 "fe_cells": cells,
+                 "surface": model.surface, "soil_density": model.soil_density, "row": 0, "loading_before_s": 0.0,
+                 "compilation_before_s": 0.0,
+                 "offsets": [(mesh.vertices[0] - reference[0]).tolist()
+                             for mesh, reference in zip(bodies, unmoved, strict=True)]}
         start = model.engine.global_particles().pos  # collective
+        fe_start = fe_nodes(model.solid)[1] if model.solid is not None else None  # collective
         if is_root():
-            atomic_write_npz(out_dir / LOADING_START, position=start)
+            atomic_write_npz(out_dir / LOADING_START, position=start,
+                             **({} if fe_start is None else {"fe_displacement": fe_start}))
+    rigid = placed(em.rigid, state["offsets"])
+    references = [reference + np.asarray(offset) for reference, offset in zip(unmoved, state["offsets"], strict=True)]
     state["compilation_before_s"] += compilation_seconds() - compiling_before
     compiling_before = compilation_seconds()
-    series = load(case, model, bodies, references, out_dir, name, state, prepared.resume)
+    series = load(case, model, bodies, rigid, references, out_dir, name, state, prepared.resume)
     grains = model.engine.global_particles()  # collective
+    fe_end = fe_nodes(model.solid) if model.solid is not None else None  # collective
     compiling = state["compilation_before_s"] + compilation_seconds() - compiling_before
     if not is_root():
-        return
+        return None
     from de_domain.packing import save_packing
     save_packing(out_dir / "final_packing.npz", grains.pos, grains.radius)
+    with np.load(out_dir / LOADING_START) as loaded:
+        start = loaded["position"]
+        fe_motion = None if fe_end is None else (fe_end[0], fe_end[1] - loaded["fe_displacement"])
+    return Outcome(out_dir, state, series, rigid, model, start, grains, fe_motion, compiling)
+
+
+def summary_of(prepared, outcome):
+    """The run's summary.json content (rank 0)."""
+    em, model, state = prepared.case.embedded, outcome.model, outcome.state
     clock = {**state["clock"], "loading_s": state["loading_before_s"]}
     total = sum(clock.values())
+    rigid = rigid_summary(outcome.rigid, outcome.series)
+    for body, seating in state["seating"].items():
+        rigid[body]["seating"] = seating
     summary = {"model": em.model, "grains": state["grains"], "ranks": mpi_comm().size, "fill": state["fill"],
-               "rest": state["rest"], "dem_dt_s": model.engine.dt, "rigid": rigid_summary(em.rigid, series),
-               "wall_clock_s": {**clock, "total_s": total, "compilation_s": compiling,
-                                "total_without_compilation_s": total - compiling}}
+               "rest": state["rest"], "dem_dt_s": model.engine.dt, "rigid": rigid,
+               "wall_clock_s": {**clock, "total_s": total, "compilation_s": outcome.compiling,
+                                "total_without_compilation_s": total - outcome.compiling}}
     if model.solid is not None:
-        summary.update({"fe_dt_s": model.solid.dt, "subcycles": model.subcycles,
+        summary.update({"fe_dt_s": model.solid.dt, "subcycles": model.subcycles, "fe_cells": state["fe_cells"],
                         "interface_facets": len(model.interface.facets.triangles)})
-    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
-    plot_rigid_forces({em.model: series}, em.rigid, out_dir / "load_displacement.png", case.case.name)
-    with np.load(out_dir / LOADING_START) as start:
-        plot_section(start["position"], grains, out_dir / "displacement_section.png", f"{case.case.name} ({em.model})")
-    compare_models(Path(prepared.out_dir), em.rigid, case.case.name)
-    say(f"[{name}] done: wall-clock {total:.0f} s, of which {compiling:.0f} s compiling (first run only)")
+    return summary
+
+
+def report(prepared, outcome, summary=None):
+    """summary.json, load_displacement.png, displacement_section.png and, when both models of the
+    case have run, their comparison (rank 0)."""
+    case = prepared.case
+    summary = summary or summary_of(prepared, outcome)
+    atomic_write_text(outcome.out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    plot_rigid_forces({case.embedded.model: outcome.series}, outcome.rigid, outcome.out_dir / "load_displacement.png",
+                      case.case.name)
+    plot_section(outcome, prepared.built["split"], outcome.out_dir / "displacement_section.png",
+                 f"{case.case.name} ({case.embedded.model})")
+    compare_models(Path(prepared.out_dir), outcome.rigid, case.case.name)
+    total = summary["wall_clock_s"]["total_s"]
+    say(f"[{case.case.name}/{case.embedded.model}] done: wall-clock {total:.0f} s, of which {outcome.compiling:.0f} s "
+        "compiling (first run only)")
 
 
 def rigid_summary(rigid, series, tail=0.2):
@@ -498,21 +695,32 @@ def plot_rigid_forces(curves, rigid, path, title):
     plt.close(fig)
 
 
-def plot_section(before, after, path, title):
-    """The grains seen along y (x–z), coloured by ``|Δx|`` during the loading."""
-    from matplotlib.collections import PatchCollection
+def plot_section(outcome, split, path, title):
+    """The model seen along y (an x–z section): the grains coloured by ``|Δx|`` during the
+    loading; (coupled) the FE volumes' front face (their smallest y) coloured by ``|Δu|`` on the
+    same scale, left empty where the grains are; the rigid bodies where the loading left them."""
+    from matplotlib.collections import PatchCollection, PolyCollection
     from matplotlib.patches import Circle
 
     from cosim.plots import plt
-    disp = np.linalg.norm(after.pos - before, axis=1)
-    order = np.argsort(after.pos[:, 1])[::-1]
+    after = outcome.grains
+    disp = np.linalg.norm(after.pos - outcome.start, axis=1)
+    top = 1e3 * float(np.percentile(disp, 99.5)) or 1.0
+    order = np.argsort(after.pos[:, 1])[::-1]  # front grains (small y) drawn last
     fig, ax = plt.subplots(figsize=(8.0, 5.0))
+    if outcome.fe_motion is not None:
+        _plot_fe_face(ax, *outcome.fe_motion, split.zone.tets, top)
     circles = PatchCollection([Circle((after.pos[i, 0], after.pos[i, 2]), after.radius[i]) for i in order],
                               cmap="viridis", linewidths=0)
     circles.set_array(1e3 * disp[order])
-    circles.set_clim(0.0, 1e3 * float(np.percentile(disp, 99.5)) or 1.0)
+    circles.set_clim(0.0, top)
     ax.add_collection(circles)
-    fig.colorbar(circles, ax=ax, label="grain displacement during loading [mm]", shrink=0.8)
+    label = "displacement during loading [mm]" if outcome.fe_motion is not None else \
+        "grain displacement during loading [mm]"
+    fig.colorbar(circles, ax=ax, label=label, shrink=0.8)
+    for mesh in outcome.model.engine.facets[:len(outcome.rigid)]:  # rigid bodies first (build_model)
+        ax.add_collection(PolyCollection(mesh.vertices[mesh.triangles][:, :, [0, 2]], facecolors="0.2",
+                                         edgecolors="0.2", linewidths=1.5))
     ax.autoscale_view()
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
@@ -521,6 +729,24 @@ def plot_section(before, after, path, title):
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+def _plot_fe_face(ax, coordinates, displacement, grain_tets, top):
+    """``|Δu|`` (mm) of the FE nodes on the model's front face (its smallest y), filled contours
+    on the scale 0 … ``top``, masked where a triangle's centre lies in the grain volumes."""
+    from matplotlib.tri import Triangulation
+
+    from de_domain.zone_fill import inside_tets
+    y0 = float(coordinates[:, 1].min())
+    scale = float(np.ptp(coordinates, axis=0).max())
+    face = np.abs(coordinates[:, 1] - y0) < 1e-9 * scale
+    x, z = coordinates[face, 0], coordinates[face, 2]
+    mesh = Triangulation(x, z)
+    centres = np.column_stack([x[mesh.triangles].mean(axis=1), np.full(len(mesh.triangles), y0 + 1e-6 * scale),
+                               z[mesh.triangles].mean(axis=1)])
+    mesh.set_mask(inside_tets(centres, grain_tets))
+    ax.tricontourf(mesh, np.clip(1e3 * np.linalg.norm(displacement[face], axis=1), 0.0, top),
+                   levels=np.linspace(0.0, top, 21), cmap="viridis")
 
 
 def compare_models(case_dir, rigid, title):

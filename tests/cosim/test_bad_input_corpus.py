@@ -303,6 +303,9 @@ CORPUS = [
     Bad("embedded", "filled by 'radius_expansion'", sets=['specimen.method="under_compaction"']),
     Bad("embedded", "a 'soil' volume needs E", edit=(("E = 2.0e6\n", ""),)),
     Bad("embedded", "a DEM wall needs a material", edit=(('material = "side_wall"', ""),)),
+    Bad("embedded", "give it a velocity", edit=(("velocity = [-0.00125, 0.0, 0.0]",
+                                                 "seating_pressure = 100.0\nvelocity = [0.0, 0.0, 0.0]"),),
+        label="a body placed on the grains without a velocity"),
     # ---------------------------------------------------------------- footing (docs/design.md §7)
     Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),
     Bad("footing", "at least 3 of the largest grains", sets=["soil.thickness=0.004"],
@@ -315,8 +318,9 @@ CORPUS = [
     Bad("footing", "remove [dem.particles]", append='\n[dem.particles]\nsource = "file"\nfile = "x.npz"\n'
         'material = "sand"\n'),
     Bad("footing", "footing.model", sets=['footing.model="fem"']),
+    Bad("footing", "filled by 'radius_expansion'", sets=['specimen.method="under_compaction"']),
     Bad("footing", "soil.E", sets=["soil.E=-1.0"]),
-    Bad("footing", "does not fit the DEM zone", cut="[specimen]",
+    Bad("footing", "lie outside the grain volumes", cut="[specimen]",
         append='\n[specimen]\nsource = "file"\nfile = "packings/sand_bed_30mm.npz"\n',
         label="a packing that does not fit the zone"),
     # ---------------------------------------------------------------- triaxial (docs/design.md §3.10)

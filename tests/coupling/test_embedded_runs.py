@@ -41,7 +41,7 @@ def test_two_ranks_fill_rest_and_load_the_same_model_bit_for_bit(one_rank, tmp_p
 
 def test_a_killed_loading_resumes_to_the_same_rows(one_rank, tmp_path):
     sets = overrides({"output.checkpoint_interval": 0.05})
-    kill_during_loading([CASE, "--out", str(tmp_path), *sets], tmp_path, state="embedded_state.json")
+    kill_during_loading([CASE, "--out", str(tmp_path), *sets], tmp_path)
     res = cosim("run", CASE, "--out", str(tmp_path), *sets, "--resume")
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     assert "resumed the loading at row" in res.stdout
@@ -52,4 +52,4 @@ def test_a_killed_loading_resumes_to_the_same_rows(one_rank, tmp_path):
 
 def test_resume_without_a_checkpoint_is_one_message(tmp_path):
     res = cosim("run", CASE, "--out", str(tmp_path), "--resume", *overrides())
-    assert res.returncode == 2 and "no embedded checkpoint" in res.stderr
+    assert res.returncode == 2 and "no checkpoint of the loading" in res.stderr

@@ -121,7 +121,7 @@ def test_lab_series(page):
 def test_footing_csvs(page):
     from cosim import soil_model
     from cosim.apps import footing
-    _check(page[1], "Footing", "series.csv", footing.COLUMNS)
+    _check(page[1], "Footing", "load_settlement.csv", footing.COLUMNS)
     _check(page[1], "Footing", "rest.csv", soil_model.REST_COLUMNS)
     _check(page[1], "Footing", "comparison.csv", _csv_header_literal(footing.compare_models))
 
