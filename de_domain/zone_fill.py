@@ -102,8 +102,7 @@ def bulk_void_ratio(tets, faces, positions, radii, margin, rng, samples=200_000)
     ratio means. None when no point is that far from the faces."""
     from scipy.spatial import cKDTree
     points = points_in_tets(tets, samples, rng)
-    far, _ = cKDTree(sample_triangles(faces, 0.25 * margin)).query(points)
-    points = points[far > margin]
+    points = points[face_distance(points, faces, tets, 0.25 * margin) > margin]
     if len(points) == 0:
         return None
     near, which = cKDTree(positions).query(points, k=16, distance_upper_bound=float(radii.max()))
@@ -125,10 +124,23 @@ def thickness(tets, faces, spacing, rng, samples_per_tet=8) -> float:
     """Twice the largest distance from a point of the volume (random points, ``samples_per_tet``
     per tetrahedron on average) to its boundary ``faces`` (m, 3, 3) (sampled every ``spacing``):
     about the diameter of the largest sphere that fits, to within ``spacing``."""
-    from scipy.spatial import cKDTree
     inside = points_in_tets(tets, samples_per_tet * len(tets), rng)
-    distance, _ = cKDTree(sample_triangles(faces, spacing)).query(inside)
-    return 2.0 * float(distance.max())
+    return 2.0 * float(face_distance(inside, faces, tets, spacing).max())
+
+
+def face_distance(points, faces, tets, spacing) -> np.ndarray:
+    """The distance (m) from each point of the volume ``tets`` to its boundary ``faces``
+    (m, 3, 3): exact to the faces that lie in planes bounding the whole volume
+    (:func:`planar_walls`; a point inside is no nearer to any other point of such a plane),
+    to within ``spacing`` to the others (sampled, :func:`sample_triangles`, a k-d tree)."""
+    from scipy.spatial import cKDTree
+    planes, rest = planar_walls(faces, tets, 0)
+    distance = np.full(len(points), np.inf)
+    for plane in planes:
+        distance = np.minimum(distance, points @ plane.normal - float(plane.point @ plane.normal))
+    if len(rest):
+        distance = np.minimum(distance, cKDTree(sample_triangles(rest, spacing)).query(points)[0])
+    return distance
 
 
 def sample_triangles(triangles, spacing) -> np.ndarray:
@@ -194,8 +206,6 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     the grain and generation parameters (its box sizes are not used; its ``plate`` material
     is not used either: each wall has its own). ``comm``: the DEM spread over its ranks
     (collective). Raises ValueError when the cloud does not fit."""
-    from scipy.spatial import cKDTree
-
     radii = np.sort(0.5 * np.asarray(diameters, float))[::-1]
     volume = tets_volume(tets)
     solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
@@ -205,7 +215,7 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     candidates = points_in_tets(tets, len(radii) * attempts, rng).reshape(len(radii), attempts, 3)
     faces = np.concatenate([w.triangles for w in walls])
     spacing = 0.5 * float(small.min())
-    clearance, _ = cKDTree(sample_triangles(faces, spacing)).query(candidates.reshape(-1, 3))
+    clearance = face_distance(candidates.reshape(-1, 3), faces, tets, spacing)
     blocked = (clearance.reshape(len(radii), attempts) < small[:, None] + spacing)
     candidates = _free_first(candidates, blocked)
     lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
@@ -224,18 +234,21 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
         if log is not None:
             log(text)
 
+    held_planes, held_facets = [], []  # the walls but the lid: planes where they can be, else facets
+    for k, w in enumerate(walls):
+        if not w.lid:
+            these, rest = planar_walls(w.triangles, tets, 1 + k)
+            held_planes += [(1 + k, plane.point.copy(), plane.normal.copy()) for plane in these]
+            held_facets += [(1 + k, rest)] if len(rest) else []
+
     def engine_for(pos, radii_now, vel, angvel, gravity, with_lid):
-        from de_domain import Engine, Particles
+        from de_domain import Engine, Particles, PlaneWall
         mats = materials(friction)
         p = Particles.from_spheres(pos, radii_now, np.zeros(len(radii_now), np.int32), mats, velocities=vel)
         p.angvel[:] = angvel
         facets = [facet_mesh(w.triangles, 1 + k) for k, w in enumerate(walls) if w.lid and with_lid]  # lid first
-        planes = []
-        for k, w in enumerate(walls):
-            if not w.lid:
-                these, rest = planar_walls(w.triangles, tets, 1 + k)
-                planes += these
-                facets += [facet_mesh(rest, 1 + k)] if len(rest) else []
+        facets += [facet_mesh(rest, k) for k, rest in held_facets]
+        planes = [PlaneWall(point, normal, k) for k, point, normal in held_planes]
         return Engine(p, mats, walls=planes, facets=facets, contact_law=s.contact_law,
                       gravity=tuple(np.asarray(gravity, float) / s.density_scale), dt=dt,
                       safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm)

@@ -177,7 +177,8 @@ def main():
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "table.md").write_text(text)
     plot(results, references, OUT / "load_settlement.png")
-    plot(results, references, ROOT / "docs" / "footing_zone_size.png")
+    picture = "footing_small_seeds.png" if args.largest_only else "footing_zone_size.png"
+    plot(results, references, ROOT / "docs" / picture)
 
 
 if __name__ == "__main__":
