@@ -12,7 +12,9 @@ the box method (:func:`de_domain.deposition.radius_expansion`):
    & Cignoni, "Generating random points in a tetrahedron", J. Graphics Tools 5, 2000), at
    least a radius from every wall;
 3. the radii grow to full size in steps, the walls holding them (gravity off), the grains
-   come to rest without gravity, then with it;
+   come to rest without gravity (or, when the lid carries less than ``seat_stress``, they
+   have not jammed: a loose gas has no equilibrium to reach without gravity, and the
+   stage ends), then with it;
 4. the lid is moved out along its normal until it carries at most ``release_stress``, then
    removed, and the grains come to rest under gravity with a free surface.
 
@@ -262,7 +264,8 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     lid_normal, lid_area = _outward(lid, tets.reshape(-1, 3).mean(axis=0))
     for label, gravity in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
         engine = engine_for(pos, radii, vel, angvel, gravity, True)
-        steps += _rest(engine, s)
+        loose = (lambda e: _lid_stress(e, walls, lid_normal, lid_area) < s.seat_stress) if label == "expanded" else None
+        steps += _rest(engine, s, loose)  # not jammed: a loose gas has no equilibrium to reach without gravity
         say(f"zone fill ({label}): unbalanced force {_unbalanced(engine):.3g}, lid stress "
             f"{_lid_stress(engine, walls, lid_normal, lid_area):.3g} Pa")
         pos, vel, angvel = _motion(engine)
@@ -353,14 +356,15 @@ def _set_lid_velocity(engine, walls, velocity):
         m.velocity = velocity
 
 
-def _rest(engine, s):
-    """Run until the unbalanced force ratio is below ``s.unbalanced_force`` (checked every
-    ``s.check_every`` steps, at most ``s.max_steps_per_layer``); returns the steps taken."""
+def _rest(engine, s, stop=None):
+    """Run until the unbalanced force ratio is below ``s.unbalanced_force``, or ``stop(engine)``
+    (checked every ``s.check_every`` steps, at most ``s.max_steps_per_layer``); returns the
+    steps taken."""
     n = 0
     while n < s.max_steps_per_layer:
         engine.run(s.check_every)
         n += s.check_every
-        if _unbalanced(engine) < s.unbalanced_force:
+        if _unbalanced(engine) < s.unbalanced_force or (stop is not None and stop(engine)):
             break
     return n
 
