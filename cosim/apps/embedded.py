@@ -698,7 +698,8 @@ def plot_rigid_forces(curves, rigid, path, title):
 def plot_section(outcome, split, path, title):
     """The model seen along y (an x–z section): the grains coloured by ``|Δx|`` during the
     loading; (coupled) the FE volumes' front face (their smallest y) coloured by ``|Δu|`` on the
-    same scale, left empty where the grains are; the rigid bodies where the loading left them."""
+    same scale, left empty where the grains are, with the interface dashed; the rigid bodies
+    where the loading left them."""
     from matplotlib.collections import PatchCollection, PolyCollection
     from matplotlib.patches import Circle
 
@@ -721,6 +722,10 @@ def plot_section(outcome, split, path, title):
     for mesh in outcome.model.engine.facets[:len(outcome.rigid)]:  # rigid bodies first (build_model)
         ax.add_collection(PolyCollection(mesh.vertices[mesh.triangles][:, :, [0, 2]], facecolors="0.2",
                                          edgecolors="0.2", linewidths=1.5))
+    if outcome.fe_motion is not None and len(split.zone.interface):
+        ax.add_collection(PolyCollection(split.zone.interface[:, :, [0, 2]], facecolors="none", edgecolors="tab:red",
+                                         linewidths=1.2, linestyles="--", label="FE-DE interface"))
+        ax.legend(loc="lower right")
     ax.autoscale_view()
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
