@@ -38,6 +38,8 @@ from de_domain.deposition import (
 )
 from de_domain.packing import insert_spheres
 
+CANDIDATE_BLOCK = 2048  # grains whose candidate centres are drawn and checked at once
+
 
 @dataclass(frozen=True)
 class ContainerWall:
@@ -104,7 +106,7 @@ def bulk_void_ratio(tets, faces, positions, radii, margin, rng, samples=200_000)
     ratio means. None when no point is that far from the faces."""
     from scipy.spatial import cKDTree
     points = points_in_tets(tets, samples, rng)
-    points = points[face_distance(points, faces, tets, 0.25 * margin) > margin]
+    points = points[distance_to(faces, tets, 0.25 * margin)(points) > margin]
     if len(points) == 0:
         return None
     near, which = cKDTree(positions).query(points, k=16, distance_upper_bound=float(radii.max()))
@@ -127,21 +129,24 @@ def thickness(tets, faces, spacing, rng, samples_per_tet=8) -> float:
     per tetrahedron on average) to its boundary ``faces`` (m, 3, 3) (sampled every ``spacing``):
     about the diameter of the largest sphere that fits, to within ``spacing``."""
     inside = points_in_tets(tets, samples_per_tet * len(tets), rng)
-    return 2.0 * float(face_distance(inside, faces, tets, spacing).max())
+    return 2.0 * float(distance_to(faces, tets, spacing)(inside).max())
 
 
-def face_distance(points, faces, tets, spacing) -> np.ndarray:
-    """The distance (m) from each point of the volume ``tets`` to its boundary ``faces``
-    (m, 3, 3): exact to the faces that lie in planes bounding the whole volume
-    (:func:`planar_walls`; a point inside is no nearer to any other point of such a plane),
-    to within ``spacing`` to the others (sampled, :func:`sample_triangles`, a k-d tree)."""
+def distance_to(faces, tets, spacing):
+    """The function giving the distance (m) from points (n, 3) of the volume ``tets`` to its
+    boundary ``faces`` (m, 3, 3): exact to the faces that lie in planes bounding the whole
+    volume (:func:`planar_walls`; a point inside is no nearer to any other point of such a
+    plane), to within ``spacing`` to the others (sampled, :func:`sample_triangles`, a k-d tree
+    built once)."""
     from scipy.spatial import cKDTree
     planes, rest = planar_walls(faces, tets, 0)
-    distance = np.full(len(points), np.inf)
-    for plane in planes:
-        distance = np.minimum(distance, points @ plane.normal - float(plane.point @ plane.normal))
-    if len(rest):
-        distance = np.minimum(distance, cKDTree(sample_triangles(rest, spacing)).query(points)[0])
+    tree = cKDTree(sample_triangles(rest, spacing)) if len(rest) else None
+
+    def distance(points):
+        out = np.full(len(points), np.inf)
+        for plane in planes:
+            out = np.minimum(out, points @ plane.normal - float(plane.point @ plane.normal))
+        return out if tree is None else np.minimum(out, tree.query(points)[0])
     return distance
 
 
@@ -214,12 +219,15 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     shrink = min(1.0, (s.cloud_solid_fraction * volume / solid) ** (1.0 / 3.0))
     small = radii * shrink
     rng = np.random.default_rng(s.seed)
-    candidates = points_in_tets(tets, len(radii) * attempts, rng).reshape(len(radii), attempts, 3)
     faces = np.concatenate([w.triangles for w in walls])
     spacing = 0.5 * float(small.min())
-    clearance = face_distance(candidates.reshape(-1, 3), faces, tets, spacing)
-    blocked = (clearance.reshape(len(radii), attempts) < small[:, None] + spacing)
-    candidates = _free_first(candidates, blocked)
+    distance = distance_to(faces, tets, spacing)
+    candidates = np.empty((len(radii), attempts, 3))
+    for start in range(0, len(radii), CANDIDATE_BLOCK):  # in blocks of grains: the memory of one block
+        block = slice(start, min(start + CANDIDATE_BLOCK, len(radii)))
+        drawn = points_in_tets(tets, (block.stop - start) * attempts, rng).reshape(-1, attempts, 3)
+        blocked = distance(drawn.reshape(-1, 3)).reshape(-1, attempts) < small[block, None] + spacing
+        candidates[block] = _free_first(drawn, blocked)
     lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
     pos, placed = insert_spheres(small, candidates, lo, hi)
     if placed < len(radii):

@@ -7,7 +7,15 @@ coupled model, ~123,000 in the all-DEM block) with each seed, both models, under
 Each seed is a different packing, generated independently in the zone and in the block. Writes
 in ``runs/out/footing_full_seeds/``: a table of q at s/B = 2, 5, 10 % and of the mean q over
 s/B = 1–10 % for each seed and for the mean over the seeds, with the coupled/all-DEM
-differences and the wall-clock of each run, and a plot of the curves (also ``docs/``).
+differences and the wall-clock of each run, and a plot of the curves (also ``docs/``); and
+the bearing capacity factor the runs reach, N_γ = q / (½ γ B) with γ = ρ_s g / (1 + e) of each
+fill, against Meyerhof's and Vesić's N_γ for φ of the same sand measured by a triaxial series
+(``studies/retaining_wall_seeds.py``'s, run if missing), and the φ Meyerhof's N_γ would need:
+
+    N_q = e^(π tan φ) tan²(45° + φ/2),  N_γ = (N_q − 1) tan(1.4 φ)  (Meyerhof 1963),
+    N_γ = 2 (N_q + 1) tan φ  (Vesić 1973)
+
+(surface strip footing, no surcharge: q_u = ½ γ B N_γ).
 
     python studies/footing_full_seeds.py [--seeds 11 12 13] [--ranks 2]
 """
@@ -15,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -31,6 +40,7 @@ CASE = ROOT / "runs" / "footing_full.toml"
 OUT = ROOT / "runs" / "out" / "footing_full_seeds"
 MODELS = ("coupled", "dem")
 MEAN_RANGE = (0.01, 0.10)  # s/B over which the mean bearing pressure is taken
+G = 9.81
 GRID = np.linspace(0.0, 0.1, 201)
 
 
@@ -70,6 +80,55 @@ def table(rows):
     return "\n".join(lines)
 
 
+def n_q(phi):
+    """N_q = e^(π tan φ) tan²(45° + φ/2) (Prandtl, Reissner), φ in degrees."""
+    p = math.radians(phi)
+    return math.exp(math.pi * math.tan(p)) * math.tan(math.pi / 4 + p / 2) ** 2
+
+
+def n_gamma_meyerhof(phi):
+    return (n_q(phi) - 1.0) * math.tan(math.radians(1.4 * phi))
+
+
+def n_gamma_vesic(phi):
+    return 2.0 * (n_q(phi) + 1.0) * math.tan(math.radians(phi))
+
+
+def phi_for(n_gamma, factor=n_gamma_meyerhof):
+    """The φ (deg) at which ``factor`` gives ``n_gamma`` (bisection; the factors grow with φ)."""
+    lo, hi = 1.0, 60.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if factor(mid) < n_gamma else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def bearing_capacity(rows, seeds):
+    """Markdown: per model the mean N_γ = q / (½ γ B) the runs reach (q the mean over 1–10 % and
+    at 10 %), the φ Meyerhof's factor needs for it, and Meyerhof's and Vesić's N_γ at the
+    triaxial series' φ."""
+    from retaining_wall_seeds import friction_angles
+
+    from cosim.case import load_case
+    case, _ = load_case(CASE, [])
+    width = case.footing.width
+    sand = [m for m in case.dem.materials if m.name == case.footing.sand_material][0]
+    lines = ["| model | e | N_γ from the mean q over 1–10 % | φ for it, Meyerhof [deg] | N_γ from q at 10 % | "
+             "φ for it, Meyerhof [deg] |", "|---|---|---|---|---|---|"]
+    for model in MODELS:
+        e = np.mean([rows[s][model][1]["fill"]["void_ratio"] for s in seeds])
+        half_gamma_b = 0.5 * sand.density * G / (1.0 + e) * width
+        mean_q, at_10 = rows["mean"][model][0][-1], rows["mean"][model][0][SETTLEMENT_LEVELS.index(0.10)]
+        lines.append(f"| {'all-DEM' if model == 'dem' else model} | {e:.3f} | {mean_q / half_gamma_b:.1f} | "
+                     f"{phi_for(mean_q / half_gamma_b):.1f} | {at_10 / half_gamma_b:.1f} | "
+                     f"{phi_for(at_10 / half_gamma_b):.1f} |")
+    lines += ["", "| φ from the triaxial series (0.5–2 kPa) | φ [deg] | N_γ Meyerhof | N_γ Vesić |",
+              "|---|---|---|---|"]
+    for strength, phi in friction_angles().items():
+        lines.append(f"| {strength} | {phi:.1f} | {n_gamma_meyerhof(phi):.1f} | {n_gamma_vesic(phi):.1f} |")
+    return "\n".join(lines)
+
+
 def plot(curves, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -106,7 +165,7 @@ def main():
             rows[seed][model] = (levels(series), info)
             curves[model].append(np.interp(GRID, series["settlement_ratio"], series["bearing_pressure"]))
     rows["mean"] = {model: (np.mean([rows[s][model][0] for s in args.seeds], axis=0), None) for model in MODELS}
-    text = table(rows) + "\n"
+    text = table(rows) + "\n\n" + bearing_capacity(rows, args.seeds) + "\n"
     print(text)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "table.md").write_text(text)
