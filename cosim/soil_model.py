@@ -1,4 +1,4 @@
-"""The model the soil–structure kinds step (``footing``, ``embedded``; docs/design.md §5, §7):
+"""The model the soil–structure kinds step (``embedded`` and its preset ``footing``; design §5, §7):
 a DEM engine with its walls, rigid bodies and (coupled) the FE interface's facets, the FE
 solid and the interface; its rest under gravity, and its checkpoints during the loading."""
 from __future__ import annotations
@@ -26,13 +26,9 @@ REST_CHECK_TIME = 2e-3  # s of simulated time between the rest checks
 
 @dataclass
 class Model:
-    """A built model: the DEM engine (grains, walls, rigid bodies; the footing kind's footing
-    is ``footing`` = ``engine.facets[0]``, None for the embedded kind), and for the coupled one
-    the FE solid and the interface (the engine's last facet mesh)."""
-    kind: str
+    """A built model: the DEM engine (grains, walls, rigid bodies), and for the coupled one the
+    FE solid and the interface (the engine's last facet mesh)."""
     engine: object
-    footing: object
-    surface: float              # z of the soil surface (the generation plate's height)
     solid: object = None
     interface: object = None
     subcycles: int = 1

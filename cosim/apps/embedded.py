@@ -304,10 +304,9 @@ def build_model(case, built, positions, radii):
     dem = case.dem
     engine_args = dict(contact_law=dem.contact_law, gravity=dem.gravity, safety_factor=case.time.safety_factor,
                        local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
-    surface = float(np.max(positions[:, 2] + radii))
     if split.fe is None:
         engine = Engine(particles, mats, walls=planes, facets=bodies + walls, **engine_args)
-        return Model(em.model, engine, None, surface), bodies
+        return Model(engine), bodies
     sand = mats[ids[em.sand_material]]
     bulk = sand.density * float(np.sum(4.0 / 3.0 * np.pi * radii**3)) / tets_volume(split.zone.tets)
     solid = build_fe(case, split, roles, bulk)
@@ -316,7 +315,7 @@ def build_model(case, built, positions, radii):
     engine = Engine(particles, mats, walls=planes, facets=bodies + walls + [interface.facets], **engine_args)
     fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, em.subcycles)
     solid.dt, engine.dt = fe_dt, dem_dt
-    return Model(em.model, engine, None, surface, solid, interface, n_sub, bulk), bodies
+    return Model(engine, solid, interface, n_sub, bulk), bodies
 
 
 def rigid_bodies(case, split, ids):
@@ -398,12 +397,12 @@ def resumed_model(case, case_path, out_dir, built, state):
     engine = checkpointed_engine(case_path, out_dir, state, STATE)
     bodies = engine.facets[:len(em.rigid)]  # rigid bodies first (build_model)
     if split.fe is None:
-        return Model(em.model, engine, None, state["surface"]), bodies
+        return Model(engine), bodies
     _, ids = _materials(case)
     solid = build_fe(case, split, Roles.of(em), state["soil_density"])
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
     restore_fe(solid, interface, engine, case_path, out_dir)
-    return Model(em.model, engine, None, state["surface"], solid, interface, int(round(solid.dt / engine.dt)),
+    return Model(engine, solid, interface, int(round(solid.dt / engine.dt)),
                  state["soil_density"]), bodies
 
 
@@ -598,7 +597,7 @@ def simulate(prepared):
             if model.solid is not None else 0  # collective
         state = {"fill": fill_info, "rest": rest, "seating": seating, "clock": clock, "grains": len(radii),
                  "fe_cells": cells,
-                 "surface": model.surface, "soil_density": model.soil_density, "row": 0, "loading_before_s": 0.0,
+                 "soil_density": model.soil_density, "row": 0, "loading_before_s": 0.0,
                  "compilation_before_s": 0.0,
                  "offsets": [(mesh.vertices[0] - reference[0]).tolist()
                              for mesh, reference in zip(bodies, unmoved, strict=True)]}
