@@ -132,20 +132,20 @@ def prepare(case, case_path, out_dir, resume):
 
 def run(prepared):
     """The embedded run of the preset, then the bearing capacity's report (rank 0)."""
-    from cosim.apps import embedded
+    from cosim.apps import embedded, embedded_report
     prepared = dataclasses.replace(prepared, case=as_embedded(prepared.case))
     outcome = embedded.simulate(prepared)
     if outcome is None:
         return
     case = prepared.case
-    summary = embedded.summary_of(prepared, outcome)
+    summary = embedded_report.summary_of(prepared, outcome)
     curve = load_settlement(outcome.series, case)
     write_load_settlement(outcome.out_dir / "load_settlement.csv", curve)
     summary.update({"seating": summary["rigid"][BODY].get("seating"), "bearing_pressure_at": bearing_pressure_at(curve),
                     "mean_bearing_pressure": mean_bearing_pressure(curve)})
     atomic_write_text(outcome.out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     plot_load_settlement({case.footing.model: curve}, outcome.out_dir / "load_settlement.png", case.case.name)
-    embedded.plot_section(outcome, prepared.built["split"], outcome.out_dir / "displacement_section.png",
+    embedded_report.plot_section(outcome, prepared.built["split"], outcome.out_dir / "displacement_section.png",
                           f"{case.case.name} ({case.footing.model}): settlement "
                           f"{100 * case.footing.settlement:.0f} % of B")
     compare_models(prepared.out_dir, case.case.name)
