@@ -17,7 +17,11 @@ Against them: Rankine K_a = tan²(45° − φ/2), and Coulomb's horizontal K_a c
 and critical-state angles. Writes ``runs/out/retaining_wall_seeds/table.md`` and the plot
 ``docs/retaining_wall_seeds.png``.
 
-    python studies/retaining_wall_seeds.py [--seeds 11 12 13]
+With ``--rotation`` the wall rotates about its toe instead (``runs/retaining_wall_rotation.toml``,
+its top moving as far as the translating wall), into ``runs/out/retaining_wall_rotation_seeds/``
+and ``docs/retaining_wall_rotation_seeds.png``; the wall's travel is that of its top.
+
+    python studies/retaining_wall_seeds.py [--seeds 11 12 13] [--rotation]
 """
 from __future__ import annotations
 
@@ -35,20 +39,28 @@ sys.path.insert(0, str(ROOT))
 from cosim.lab.shear_report import read_series  # noqa: E402
 
 CASE = ROOT / "runs" / "retaining_wall_small.toml"
+ROTATION = ROOT / "runs" / "retaining_wall_rotation.toml"
 TRIAXIAL = ROOT / "runs" / "triaxial_wall_sand.toml"
 OUT = ROOT / "runs" / "out" / "retaining_wall_seeds"
+ROTATION_OUT = ROOT / "runs" / "out" / "retaining_wall_rotation_seeds"
 MODELS = ("coupled", "dem")
 H, LY, RHO_S, G = 0.06, 0.01, 2650.0, 9.81
-ACTIVE_FROM = 0.3e-3  # m of wall travel (0.5 % of H) after which the thrust is taken as active
+ACTIVE_FROM = 0.3e-3  # m of the wall top's travel (0.5 % of H) after which the thrust is taken as active
 
 
-def run(seed, model):
-    out = OUT / f"seed{seed}"
+def run(seed, model, case=CASE, out=OUT):
+    out = out / f"seed{seed}"
     summary = out / model / "summary.json"
     if not summary.exists():
-        subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(CASE), "--out", str(out), "--set",
+        subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out), "--set",
                         f"case.seed={seed}", "--set", f"embedded.model=\"{model}\""], check=True, cwd=ROOT)
     return read_series(out / model / "series.csv"), json.loads(summary.read_text())
+
+
+def travel(series):
+    """How far the wall's top has moved away from the backfill (m): its translation plus its
+    rotation about the toe times H."""
+    return series["wall_displacement"] + H * series["wall_rotation"]
 
 
 def friction_angles():
@@ -65,7 +77,7 @@ def friction_angles():
 
 def active(series, info):
     """K_h, the resultant's height / H, δ (deg) once the wall has moved ACTIVE_FROM."""
-    moved = series["wall_displacement"] >= ACTIVE_FROM
+    moved = travel(series) >= ACTIVE_FROM
     fx, fz = -np.mean(series["wall_force_x"][moved]), -np.mean(series["wall_force_z"][moved])
     my = np.mean(series["wall_moment_y"][moved])
     gamma = RHO_S * G / (1.0 + info["fill"]["void_ratio"])
@@ -88,13 +100,15 @@ def coulomb_horizontal(phi, delta):
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13])
+    parser.add_argument("--rotation", action="store_true", help="the wall rotating about its toe")
     args = parser.parse_args()
+    case, out = (ROTATION, ROTATION_OUT) if args.rotation else (CASE, OUT)
     results, curves = {m: [] for m in MODELS}, {m: [] for m in MODELS}
     for seed in args.seeds:
         for model in MODELS:
-            series, info = run(seed, model)
+            series, info = run(seed, model, case, out)
             results[model].append(active(series, info))
-            curves[model].append((series["wall_displacement"], -series["wall_force_x"]))
+            curves[model].append((travel(series), -series["wall_force_x"]))
     lines = ["| seed | model | grains | e | F_x active [N] | K_h | height / H | δ [deg] | wall-clock [s] |",
              "|---|---|---|---|---|---|---|---|---|"]
     for k, seed in enumerate(args.seeds):
@@ -123,12 +137,13 @@ def main():
         lines.append(f"| {name} | {phi:.1f} | {rankine(phi):.3f} | {coulomb} |")
     text = "\n".join(lines) + "\n"
     print(text)
-    OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "table.md").write_text(text)
-    plot(curves, ROOT / "docs" / "retaining_wall_seeds.png")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "table.md").write_text(text)
+    name = "retaining_wall_rotation_seeds" if args.rotation else "retaining_wall_seeds"
+    plot(curves, ROOT / "docs" / f"{name}.png", "rotating about its toe" if args.rotation else "translating")
 
 
-def plot(curves, path):
+def plot(curves, path, motion):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -138,9 +153,9 @@ def plot(curves, path):
         for k, (x, f) in enumerate(curves[model]):
             ax.plot(1e3 * x, f, color=color, lw=1.0, alpha=0.7, label=label if k == 0 else None)
     ax.axvline(1e3 * ACTIVE_FROM, color="0.8", lw=0.8, zorder=0)
-    ax.set_xlabel("wall displacement away from the backfill [mm]")
+    ax.set_xlabel("wall top's displacement away from the backfill [mm]")
     ax.set_ylabel("horizontal thrust on the wall F_x [N]")
-    ax.set_title("retaining wall, small (H = 60 mm, 10 mm slice): one line per packing")
+    ax.set_title(f"retaining wall, small (H = 60 mm, 10 mm slice), {motion}: one line per packing")
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
