@@ -49,16 +49,11 @@ def read_specimen(path):
     return pos, radii, height, e
 
 
-def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None, release_stress=None,
-                  layers=None, bulk_margin=None):
+def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None):
     """Generate the specimen of ``case.specimen`` in ``box`` (or read it from ``cache`` if that
     file exists); returns (positions, radii, height, info dict). Writes ``specimen.npz`` in
     ``out_dir`` (and ``cache``). With ``comm``, collective: the generation's DEM is spread over
-    the ranks, rank 0 writes. ``release_stress`` (Pa): at the end, the plate is raised until it
-    carries at most this (GenerationSettings.release_stress), for a specimen that will lose it.
-    ``layers``: the number of layers (under-compaction), instead of ``specimen.layers``.
-    ``bulk_margin`` (m): when given, the target is checked against the void ratio of the bulk
-    (:func:`bulk_void_ratio`) instead of the whole box's."""
+    the ranks, rank 0 writes."""
     from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
     from de_domain.packing import save_packing
     sp = case.specimen
@@ -86,21 +81,15 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
         local_damping=sp.local_damping, safety_factor=case.time.safety_factor,
         contact_law=case.dem.contact_law, unbalanced_force=sp.unbalanced_force, plate_velocity=sp.plate_velocity,
         plate_stress_limit=sp.plate_stress_limit, friction_reduction=sp.friction_reduction,
-        hold_friction=sp.hold_friction, layers=layers or sp.layers,
+        hold_friction=sp.hold_friction, layers=sp.layers,
         undercompaction=sp.undercompaction, cloud_solid_fraction=sp.cloud_solid_fraction,
-        max_steps_per_layer=sp.max_steps_per_layer, release_stress=release_stress,
+        max_steps_per_layer=sp.max_steps_per_layer,
         seed=case.case.seed)
     t0 = time.perf_counter()
     specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm)
     wall_clock = time.perf_counter() - t0
-    bulk = None if bulk_margin is None else bulk_void_ratio(specimen.positions, specimen.radii, box, specimen.height,
-                                                            bulk_margin)
-    reached = specimen.void_ratio if bulk is None else bulk
-    ok = abs(reached - sp.void_ratio) <= sp.tolerance
-    measured = (f"e = {specimen.void_ratio:.4f}" if bulk is None else
-                f"e = {bulk:.4f} in the bulk ({bulk_margin * 1e3:.1f} mm in from the box's ends, bottom and top; "
-                f"{specimen.void_ratio:.4f} with the looser layers at the walls)")
-    say(f"[{name}] specimen: {measured} (target {sp.void_ratio} ± {sp.tolerance}: "
+    ok = abs(specimen.void_ratio - sp.void_ratio) <= sp.tolerance
+    say(f"[{name}] specimen: e = {specimen.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
         f"{'OK' if ok else 'MISSED'}), h = {specimen.height * 1e3:.3f} mm, {specimen.steps} steps, {wall_clock:.0f} s")
     targets = [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else [])
     for target in targets if is_root() else []:
@@ -108,21 +97,9 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
         save_packing(target, specimen.positions, specimen.radii, height=specimen.height,
                      void_ratio=specimen.void_ratio, method=specimen.method)
     info = {"source": sp.method, "void_ratio_generated": specimen.void_ratio, "void_ratio_target": sp.void_ratio,
-            **({} if bulk is None else {"void_ratio_bulk": bulk, "bulk_margin_m": bulk_margin}),
             "void_ratio_within_tolerance": bool(ok), "generation_steps": specimen.steps,
             "generation_wall_clock_s": wall_clock, "generation_log": specimen.log}
     return specimen.positions, specimen.radii, specimen.height, info
-
-
-def bulk_void_ratio(positions, radii, box: SpecimenBox, height, margin):
-    """e of the grains in the box less ``margin`` at its two x ends, its bottom and its top
-    (its y faces kept). Spheres pack looser against a flat wall (a layer about a grain thick),
-    so two boxes of one sand with different wall areas per volume have different whole-box e,
-    and the same e away from the walls. (docs/design.md §3.3: e = V_voids / V_solids.)"""
-    from de_domain.diagnostics import BoxRegion, spheres_solid_volume
-    region = BoxRegion((margin, 0.0, margin), (box.length - margin, box.width, height - margin))
-    solid = spheres_solid_volume(np.asarray(positions, float), np.asarray(radii, float), region)
-    return (region.volume - solid) / solid
 
 
 def read_lab_inputs(case, case_path, length, width):

@@ -70,20 +70,3 @@ def test_layers_share_the_solid_volume_equally():
     assert sum(len(g) for g in groups) == len(d)
     vols = np.array([np.sum(g**3) for g in groups])
     np.testing.assert_allclose(vols / vols.mean(), 1.0, atol=0.01)
-
-
-def test_the_bulk_void_ratio_of_a_cubic_lattice_is_6_over_pi_minus_1_with_its_spheres_cut_in_half():
-    """Simple cubic packing: e = 6/π − 1 in any region whose faces pass through the sphere
-    centres, so a margin of one radius cuts every sphere of the outer layers in half (the
-    32 × 32 Gauss–Legendre quadrature of de_domain.diagnostics, whose square-root edge of the
-    disc costs ~1e-5 of a cut sphere's volume), and the whole box gives the same."""
-    from cosim.specimen import SpecimenBox, bulk_void_ratio
-    r, n = 1e-3, (8, 3, 6)
-    grid = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1).reshape(-1, 3)
-    pos = (2 * grid + 1) * r
-    radii = np.full(len(pos), r)
-    box = SpecimenBox(2 * r * n[0], 2 * r * n[1], 2 * r * n[2], [], 0, 0, 0)
-    exact = 6 / np.pi - 1
-    assert bulk_void_ratio(pos, radii, box, box.height, r) == pytest.approx(exact, rel=2e-5)
-    assert bulk_void_ratio(pos, radii, box, box.height, 2 * r) == pytest.approx(exact, rel=2e-5)
-    assert bulk_void_ratio(pos, radii, box, box.height, 0.0) == pytest.approx(exact, rel=1e-12)
