@@ -69,6 +69,33 @@ class BodyForce:
 
 
 @dataclass(frozen=True)
+class GeostaticStress:
+    """Initial (in-situ) stress of the cells of the volume ``groups``, at rest under gravity
+    ``acceleration`` below a level ground surface through ``ground``, with the earth pressure
+    coefficient at rest ``K0``:
+
+        σ0 = σ_v [K0 (I − ĝ ĝᵀ) + ĝ ĝᵀ],   σ_v = −ρ |g| d,   d = (x − x_ground)·ĝ
+
+    (tension positive, ĝ = g/|g|, ρ the cells' density; e.g. Potts & Zdravković, *Finite element
+    analysis in geotechnical engineering*, vol. 1, §11.2). It satisfies div σ0 + ρ g = 0 with no
+    traction on the ground surface; the solver adds −∫ ∇w : σ0 dx to the external force, so a
+    body of soil given its own weight and this stress starts in equilibrium and u, p, the von
+    Mises field are measured from it. Without it, a soil loaded by gravity from zero stress
+    between roller sides settles to K0 = ν / (1 − ν)."""
+
+    acceleration: Sequence[float]
+    ground: Sequence[float]
+    K0: float
+    groups: Sequence[str]
+
+    def __post_init__(self):
+        if not self.K0 > 0:
+            raise ValueError(f"GeostaticStress.K0 = {self.K0!r}: must be > 0")
+        if not np.linalg.norm(self.acceleration) > 0:
+            raise ValueError(f"GeostaticStress.acceleration = {list(self.acceleration)!r}: must not be zero")
+
+
+@dataclass(frozen=True)
 class MassProportionalDamping:
     """f_damp = α M v^{n−½}, α in 1/s (critical for a mode ω when α = 2ω)."""
 

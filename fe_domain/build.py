@@ -9,7 +9,9 @@ TOML table) and returns the solver; it reads no files besides the mesh.  Tables:
                            "components": [0], "ramp": 0.01}]
     loads      [{"type": "traction", "boundary": "top", "traction": [0, 0, -1e4], "ramp": 0.01},
                 {"type": "pressure", "boundary": "top", "pressure": 1e4},
-                {"type": "body_force", "acceleration": [0, 0, -9.81]}]
+                {"type": "body_force", "acceleration": [0, 0, -9.81]},
+                {"type": "geostatic", "acceleration": [0, 0, -9.81], "ground": [0, 0, 0.5],
+                 "K0": 0.5, "groups": ["soil"]}]   (the initial stress at rest, GeostaticStress)
     damping    {"type": "local", "alpha": 0.7}  or  {"type": "mass", "alpha": 50.0}
 
 ``components`` default to all three; ``ramp`` (s) makes the amplitude rise linearly
@@ -23,6 +25,7 @@ from mpi4py import MPI
 from fe_domain.boundary import (
     BodyForce,
     Fixed,
+    GeostaticStress,
     LocalNonViscousDamping,
     MassProportionalDamping,
     Material,
@@ -83,7 +86,9 @@ def _load(index: int, table: dict):
         return NormalPressure(table["boundary"], table["pressure"], _amplitude(table))
     if kind == "body_force":
         return BodyForce(table["acceleration"], _amplitude(table))
-    raise ValueError(f"loads[{index}].type = {kind!r}: must be 'traction', 'pressure' or 'body_force'")
+    if kind == "geostatic":
+        return GeostaticStress(table["acceleration"], table["ground"], table["K0"], tuple(table["groups"]))
+    raise ValueError(f"loads[{index}].type = {kind!r}: must be 'traction', 'pressure', 'body_force' or 'geostatic'")
 
 
 def _damping(table: dict | None):

@@ -69,12 +69,14 @@ from fe_domain import compiled, forms, jit
 from fe_domain.boundary import (
     BodyForce,
     Fixed,
+    GeostaticStress,
     LocalNonViscousDamping,
     MassProportionalDamping,
     Material,
     NormalPressure,
     PrescribedVelocity,
     Traction,
+    constant,
 )
 from fe_domain.mesh import TaggedMesh
 from numba_support.dispatch import CachedEntry
@@ -112,7 +114,7 @@ class ExplicitSolid:
 
     def __init__(self, tagged_mesh: TaggedMesh, material: Material | Mapping[str, Material], *,
                  boundary_conditions: Sequence[Fixed | PrescribedVelocity] = (),
-                 loads: Sequence[Traction | NormalPressure | BodyForce] = (),
+                 loads: Sequence[Traction | NormalPressure | BodyForce | GeostaticStress] = (),
                  damping=None, formulation: str = "mixed",
                  alpha_tau: float = DEFAULT_ALPHA_TAU, safety_factor: float = 0.5,
                  dt: float | None = None, compiled: bool | None = None):
@@ -277,11 +279,18 @@ class ExplicitSolid:
         self._prescribed = prescribed
 
     def _setup_loads(self, loads):
-        """Assemble each load once into a nodal vector; f_ext(t) = Σ amplitude_i(t) F_i."""
+        """Assemble each load once into a nodal vector; f_ext(t) = Σ amplitude_i(t) F_i. The
+        geostatic stresses together make one constant load (−∫ σ0 : ∇w) and
+        ``initial_stress`` (σ0, a UFL tensor; None without)."""
         w = ufl.TestFunction(self.V)
         ds = ufl.Measure("ds", domain=self.mesh, subdomain_data=self.tagged_mesh.facet_tags)
         self._loads = []
+        geostatic = [load for load in loads if isinstance(load, GeostaticStress)]
+        self.initial_stress = self._initial_stress(geostatic) if geostatic else None
+        forms_ = [(forms.initial_stress_load(w, self.initial_stress), constant)] if geostatic else []
         for load in loads:
+            if isinstance(load, GeostaticStress):
+                continue
             if isinstance(load, BodyForce):
                 form = forms.body_force_load(w, self.rho, self._constant(load.acceleration))
             elif isinstance(load, Traction):
@@ -292,10 +301,24 @@ class ExplicitSolid:
                 form = forms.normal_pressure_load(w, self._constant(load.pressure), ds(tag),
                                                   ufl.FacetNormal(self.mesh))
             else:
-                raise TypeError(f"load {load!r}: not Traction, NormalPressure or BodyForce")
+                raise TypeError(f"load {load!r}: not Traction, NormalPressure, BodyForce or GeostaticStress")
+            forms_.append((form, load.amplitude))
+        for form, amplitude in forms_:
             vector = dolfinx.la.vector(self.V.dofmap.index_map, 3)
             self._assemble(vector, fem.form(form))
-            self._loads.append((vector.array.reshape(-1, 3).copy(), load.amplitude))
+            self._loads.append((vector.array.reshape(-1, 3).copy(), amplitude))
+
+    def _initial_stress(self, geostatic):
+        """σ0 of the geostatic stresses (:func:`forms.geostatic_stress`), each on its groups' cells."""
+        x = ufl.SpatialCoordinate(self.mesh)
+        total = 0
+        for load in geostatic:
+            indicator = fem.Function(self.D0)
+            for group in load.groups:
+                indicator.x.array[self.D0.dofmap.list.array[self.tagged_mesh.cells(group)]] = 1.0
+            total = total + forms.geostatic_stress(x, indicator, self.rho, self._constant(load.acceleration),
+                                                   self._constant(load.ground), self._constant(load.K0))
+        return total
 
     def _constant(self, value):
         return fem.Constant(self.mesh, PETSc.ScalarType(value) if np.ndim(value) == 0

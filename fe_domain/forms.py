@@ -28,10 +28,28 @@ def deviatoric_stress(u, G):
     return 2.0 * G * ufl.dev(strain(u))
 
 
-def von_mises(u, G):
-    """σ_vM = √(3/2 s:s); the mean stress p does not enter."""
+def von_mises(u, G, initial_stress=None):
+    """σ_vM = √(3/2 s:s), s = s(u) + dev σ0 with an initial stress σ0; p does not enter."""
     s = deviatoric_stress(u, G)
+    if initial_stress is not None:
+        s = s + ufl.dev(initial_stress)
     return ufl.sqrt(1.5 * ufl.inner(s, s))
+
+
+def geostatic_stress(x, indicator, rho, gravity, ground, k0):
+    """σ0 = χ σ_v [K0 (I − ĝ ĝᵀ) + ĝ ĝᵀ], σ_v = −ρ |g| (x − x_ground)·ĝ (tension positive; χ = 1
+    on the cells it applies to, 0 elsewhere); :class:`fe_domain.boundary.GeostaticStress`.
+    ``gravity`` g and ``ground`` are constant vectors, ``k0`` a constant."""
+    magnitude = ufl.sqrt(ufl.dot(gravity, gravity))
+    down = gravity / magnitude
+    vertical = ufl.outer(down, down)
+    sigma_v = -rho * magnitude * ufl.dot(x - ground, down)
+    return indicator * sigma_v * (k0 * (ufl.Identity(3) - vertical) + vertical)
+
+
+def initial_stress_load(w, initial_stress):
+    """−∫ σ0 : ∇w, the nodal force that holds an initial stress σ0 in equilibrium."""
+    return -ufl.inner(initial_stress, ufl.grad(w)) * ufl.dx
 
 
 def lumped_mass(q, rho):

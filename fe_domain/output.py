@@ -2,7 +2,9 @@
 
 Fields written: displacement u, velocity v, mean stress p (P1, at nodes) and the
 von Mises stress √(3/2 s:s) of s = 2G dev ε(u) (DG0, one value per cell), plus any
-fields the caller adds (e.g. the coupling's interface traction).
+fields the caller adds (e.g. the coupling's interface traction). A solid with an initial
+(geostatic) stress σ0: u and p are measured from it; the von Mises stress is of the whole
+deviator, s + dev σ0, and ``mean_stress`` (DG0) is the whole mean stress, p + tr σ0 / 3.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import ufl
 from dolfinx import fem
 from dolfinx.io import XDMFFile
 
@@ -32,16 +35,21 @@ class FieldWriter:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         self.file = XDMFFile(solver.comm, str(Path(path).with_suffix(".xdmf")), "w")
         self.file.write_mesh(solver.mesh)
-        self.von_mises = fem.Function(solver.D0, name="von_mises")
-        self._von_mises_expr = fem.Expression(forms.von_mises(solver.u, solver.G),
-                                              solver.D0.element.interpolation_points())
+        points = solver.D0.element.interpolation_points()
+        self.cell_fields = [(fem.Function(solver.D0, name="von_mises"),
+                              fem.Expression(forms.von_mises(solver.u, solver.G, solver.initial_stress), points))]
+        if solver.initial_stress is not None:
+            self.cell_fields.append((fem.Function(solver.D0, name="mean_stress"),
+                                      fem.Expression(solver.p + ufl.tr(solver.initial_stress) / 3.0, points)))
 
     def write(self) -> None:
         """Append the current state at t = solver.time."""
-        self.von_mises.interpolate(self._von_mises_expr)
+        for field, expression in self.cell_fields:
+            field.interpolate(expression)
         t = self.solver.time
         extra = [field() for field in self.extra_fields]
-        for field in (self.solver.u, self.solver.v, self.solver.p, self.von_mises, *extra):
+        cell_fields = [field for field, _ in self.cell_fields]
+        for field in (self.solver.u, self.solver.v, self.solver.p, *cell_fields, *extra):
             self.file.write_function(field, t)
 
     def close(self) -> None:
