@@ -405,6 +405,10 @@ class SoilSection(_Section):
     rho: Optional[float] = Field(
         default=None, gt=0,
         description="density of the FE soil [kg/m^3]; default the bulk density of the zone's packing")
+    K0: Optional[float] = Field(
+        default=None, gt=0, le=3,
+        description="coefficient of earth pressure at rest of the FE soil's initial stress (as "
+                    "embedded.volumes[].K0); unset: K0 = nu / (1 - nu) from its settlement under its weight [-]")
     mesh_size: float = Field(gt=0, description="largest FE element size, far from the zone [m]")
     interface_mesh_size: float = Field(gt=0, description="FE element size at the zone's faces [m]")
     refinement_distance: Optional[float] = Field(
@@ -443,6 +447,11 @@ class EmbeddedVolume(_Section):
     rho: Optional[float] = Field(
         default=None, gt=0,
         description="density [kg/m^3]; a structure needs it; soil: default the bulk density of the zone's packing")
+    K0: Optional[float] = Field(
+        default=None, gt=0, le=3,
+        description="soil: the coefficient of earth pressure at rest of its initial (geostatic) stress, "
+                    "sigma_h = K0 sigma_v below level ground at the model's top, so the FE soil starts at rest; "
+                    "unset: it settles under its weight from zero stress, to K0 = nu / (1 - nu) between rollers [-]")
 
 
 class EmbeddedSurface(_Section):
@@ -743,7 +752,9 @@ _UNUSED = [
     ("output", ("interval",), lambda c, s: c.case.kind == "embedded",
      "an embedded run writes embedded.rows CSV rows over the loading; set rows instead"),
     ("embedded", ("mesh_size", "parameters"), lambda c, s: s.mesh.endswith(".msh"), "a .msh file is already meshed"),
-    ("embedded.volumes[]", ("E", "nu", "rho"), lambda c, s: s.role == "zone", "a zone is made of grains"),
+    ("embedded.volumes[]", ("E", "nu", "rho", "K0"), lambda c, s: s.role == "zone", "a zone is made of grains"),
+    ("embedded.volumes[]", ("K0",), lambda c, s: s.role == "structure",
+     "a structure is not in the ground's stress at rest; K0 is for 'soil' volumes"),
     ("embedded.surfaces[]", ("material",), lambda c, s: s.dem == "free", "a free surface has no wall"),
     ("output", ("interval",), lambda c, s: c.case.kind == "footing",
      "a footing run writes footing.rows CSV rows over the settlement; set rows instead"),

@@ -407,7 +407,8 @@ def resumed_model(case, case_path, out_dir, built, state):
 
 def build_fe(case, split, roles, bulk_density):
     """The FE volumes on the split mesh: a material per volume (soil without ρ: the packing's
-    bulk density), supports from the surfaces' ``fe`` roles, gravity, local damping."""
+    bulk density), supports from the surfaces' ``fe`` roles, gravity, the geostatic stress of
+    the soil volumes given K0 (:func:`geostatic_loads`), local damping."""
     from fe_domain.build import build_solid
     from fe_domain.explicit import stable_alpha_tau
     materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density} for g, v in roles.fe.items()}
@@ -418,10 +419,31 @@ def build_fe(case, split, roles, bulk_density):
         components = [0, 1, 2] if s.fe == "fixed" else [roller_axis(split.surfaces[group])]
         supports.append({"type": "fixed", "boundary": group, "components": components})
     nu = max(v.nu for v in roles.fe.values())
+    gravity = {"type": "body_force", "acceleration": list(case.dem.gravity)}
     return build_solid(split.fe, material=materials, boundary_conditions=supports,
-                       loads=[{"type": "body_force", "acceleration": list(case.dem.gravity)}],
+                       loads=[gravity, *geostatic_loads(case, split, roles)],
                        damping={"type": "local", "alpha": case.embedded.damping} if case.embedded.damping else None,
                        formulation="mixed", alpha_tau=stable_alpha_tau(nu), safety_factor=case.time.safety_factor)
+
+
+def geostatic_loads(case, split, roles):
+    """The initial stress of each FE soil volume given K0 (``fe_domain.build`` "geostatic"
+    tables): level ground through the model's highest point along −g (of the zone and the FE
+    soil volumes, every rank's), the overburden of the volume's own density."""
+    from mpi4py import MPI
+    given = {group: v.K0 for group, v in roles.fe.items() if v.role == "soil" and v.K0 is not None}
+    if not given:
+        return []
+    up = -np.asarray(case.dem.gravity, dtype=float) / np.linalg.norm(case.dem.gravity)
+    coordinates = split.fe.mesh.geometry.x
+    cells = np.concatenate([split.fe.cells(g) for g in given])
+    vertices = split.fe.mesh.geometry.dofmap.array.reshape(-1, 4)[cells].ravel()
+    heights = [coordinates[vertices] @ up, split.zone.tets.reshape(-1, 3) @ up]
+    local = max((float(h.max()) for h in heights if len(h)), default=-np.inf)
+    height = split.fe.mesh.comm.allreduce(local, op=MPI.MAX)
+    ground = list(height * up)
+    return [{"type": "geostatic", "acceleration": list(case.dem.gravity), "ground": ground, "K0": k0,
+             "groups": [group]} for group, k0 in given.items()]
 
 
 # --------------------------------------------------------------------------- loading

@@ -101,7 +101,7 @@ def as_embedded(case):
     section = EmbeddedSection(
         model=ft.model, mesh=MESH, mesh_size=soil.mesh_size, parameters=geometry.mesh_parameters(soil),
         volumes=[EmbeddedVolume(group="zone", role="zone"),
-                 EmbeddedVolume(group="soil", role="soil", E=soil.E, nu=soil.nu, rho=soil.rho)],
+                 EmbeddedVolume(group="soil", role="soil", E=soil.E, nu=soil.nu, rho=soil.rho, K0=soil.K0)],
         surfaces=[EmbeddedSurface(group="bottom", fe="fixed", dem="wall", material=zone.interface_material),
                   EmbeddedSurface(group="sides_x", fe="roller", dem="wall", material=ft.side_wall_material),
                   EmbeddedSurface(group="sides_y", fe="roller", dem="wall", material=ft.side_wall_material)],

@@ -306,6 +306,8 @@ CORPUS = [
     Bad("embedded", "give it a velocity", edit=(("velocity = [-0.00125, 0.0, 0.0]",
                                                  "seating_pressure = 100.0\nvelocity = [0.0, 0.0, 0.0]"),),
         label="a body placed on the grains without a velocity"),
+    Bad("embedded", "a zone is made of grains", sets=["embedded.volumes[0].K0=0.5"], label="K0 given for a zone"),
+    Bad("embedded", "greater than 0", sets=["embedded.volumes[1].K0=-0.5"], label="a negative K0"),
     # ---------------------------------------------------------------- footing (docs/design.md §7)
     Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),
     Bad("footing", "at least 3 of the largest grains", sets=["soil.thickness=0.004"],

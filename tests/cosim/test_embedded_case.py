@@ -22,6 +22,15 @@ def coupled(tmp_path_factory):
     return out / "coupled"
 
 
+@pytest.fixture(scope="module")
+def coupled_k0(tmp_path_factory):
+    """The same case with the FE soil given its geostatic stress, K0 = 0.6."""
+    out = tmp_path_factory.mktemp("embedded_k0")
+    sets = [arg for s in [*SMALL, "embedded.volumes[1].K0=0.6"] for arg in ("--set", s)]
+    assert main(["run", "runs/retaining_wall_small.toml", *sets, "--out", str(out)]) == 0
+    return out / "coupled"
+
+
 def test_the_model_rests_on_its_supports_with_the_grains_weight(coupled):
     summary = json.loads((coupled / "summary.json").read_text())
     rest = summary["rest"]
@@ -62,3 +71,14 @@ def test_a_rigid_body_rotates_about_its_pivot_and_translates():
     assert np.allclose(mesh.vertices, [[0.5, 0, 0], [1.5, 0, 0], [1.5, 0, -1]], atol=1e-12)
     expected = [0.5, 0, 0] + np.cross([0, np.pi / 2, 0], mesh.vertices - [0.5, 0, 0])
     assert np.allclose(mesh.vertex_velocity, expected, atol=1e-12)
+
+
+def test_fe_soil_given_k0_starts_at_rest(coupled, coupled_k0):
+    """Given its geostatic stress, the FE soil does not settle under its weight: at rest its
+    largest displacement is a small part of the same soil's settlement from zero stress (only the
+    grains' push at the interface moves it), and the supports still carry the whole weight."""
+    summary = json.loads((coupled_k0 / "summary.json").read_text())
+    assert summary["rest"]["at_rest"]
+    assert summary["rest"]["support_force_over_weight"] == pytest.approx(1.0, abs=0.01)
+    settled, given = (np.load(out / "loading_start.npz")["fe_displacement"] for out in (coupled, coupled_k0))
+    assert np.abs(given[:, 2]).max() < 0.2 * np.abs(settled[:, 2]).max()
