@@ -17,11 +17,23 @@ Against them: Rankine K_a = tan²(45° − φ/2), and Coulomb's horizontal K_a c
 and critical-state angles. Writes ``runs/out/retaining_wall_seeds/table.md`` and the plot
 ``docs/retaining_wall_seeds.png``.
 
+Also the wall's travel needed to mobilise the active state: the first row where the thrust
+has made MOBILISED (90 %) of its drop from the thrust at rest (row 0) to its active value,
+over H, against the Δ/H ≈ 0.001
+(dense), 0.002 (medium dense), 0.004 (loose sand) of Clough & Duncan (1991, *Foundation
+Engineering Handbook*, ch. 6, table 6.2) for a wall translating or rotating about its toe.
+
 With ``--rotation`` the wall rotates about its toe instead (``runs/retaining_wall_rotation.toml``,
 its top moving as far as the translating wall), into ``runs/out/retaining_wall_rotation_seeds/``
-and ``docs/retaining_wall_rotation_seeds.png``; the wall's travel is that of its top.
+and ``docs/retaining_wall_rotation_seeds.png``; the wall's travel is that of its top. With
+``--full`` the full-size translating wall (``runs/retaining_wall_full.toml``, H = 120 mm, the
+backfill 5 H long: about 9,000 grains in the zone, 55,000 in the all-DEM twin; about 15 and 60
+minutes a seed on one core each), into ``runs/out/retaining_wall_full_seeds/`` and
+``docs/retaining_wall_full_seeds.png``. The study runs one case at a time; for the wall-clocks
+quoted in the docs the two models of a seed ran side by side, one thread each
+(``NUMBA_NUM_THREADS=1``, one ``cosim run`` per model into the same folders).
 
-    python studies/retaining_wall_seeds.py [--seeds 11 12 13] [--rotation]
+    python studies/retaining_wall_seeds.py [--seeds 11 12 13] [--rotation | --full]
 """
 from __future__ import annotations
 
@@ -30,6 +42,7 @@ import json
 import math
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,18 +51,38 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from cosim.lab.shear_report import read_series  # noqa: E402
 
-CASE = ROOT / "runs" / "retaining_wall_small.toml"
-ROTATION = ROOT / "runs" / "retaining_wall_rotation.toml"
 TRIAXIAL = ROOT / "runs" / "triaxial_wall_sand.toml"
-OUT = ROOT / "runs" / "out" / "retaining_wall_seeds"
-ROTATION_OUT = ROOT / "runs" / "out" / "retaining_wall_rotation_seeds"
+TRIAXIAL_OUT = ROOT / "runs" / "out" / "retaining_wall_seeds" / "triaxial"
 MODELS = ("coupled", "dem")
-H, LY, RHO_S, G = 0.06, 0.01, 2650.0, 9.81
-ACTIVE_FROM = 0.3e-3  # m of the wall top's travel (0.5 % of H) after which the thrust is taken as active
+LY, RHO_S, G = 0.01, 2650.0, 9.81
+ACTIVE_FROM = 0.005  # of H: the wall top's travel after which the thrust is taken as active
+MOBILISED = 0.9      # this fraction of the thrust's drop from rest to active made: the active state mobilised
 
 
-def run(seed, model, case=CASE, out=OUT):
-    out = out / f"seed{seed}"
+@dataclass(frozen=True)
+class Variant:
+    """One wall study: its case, output folder, wall height H (m), picture name and title."""
+    case: Path
+    out: Path
+    height: float
+    picture: str
+    title: str
+
+
+VARIANTS = {
+    "translating": Variant(ROOT / "runs" / "retaining_wall_small.toml", ROOT / "runs" / "out" / "retaining_wall_seeds",
+                           0.06, "retaining_wall_seeds", "small (H = 60 mm, 10 mm slice), translating"),
+    "rotating": Variant(ROOT / "runs" / "retaining_wall_rotation.toml",
+                        ROOT / "runs" / "out" / "retaining_wall_rotation_seeds", 0.06, "retaining_wall_rotation_seeds",
+                        "small (H = 60 mm, 10 mm slice), rotating about its toe"),
+    "full": Variant(ROOT / "runs" / "retaining_wall_full.toml", ROOT / "runs" / "out" / "retaining_wall_full_seeds",
+                    0.12, "retaining_wall_full_seeds",
+                    "full size (H = 120 mm, backfill 5 H, 10 mm slice), translating"),
+}
+
+
+def run(seed, model, variant):
+    out, case = variant.out / f"seed{seed}", variant.case
     summary = out / model / "summary.json"
     if not summary.exists():
         subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out), "--set",
@@ -57,16 +90,16 @@ def run(seed, model, case=CASE, out=OUT):
     return read_series(out / model / "series.csv"), json.loads(summary.read_text())
 
 
-def travel(series):
+def travel(series, height):
     """How far the wall's top has moved away from the backfill (m): its translation plus its
     rotation about the toe times H."""
-    return series["wall_displacement"] + H * series["wall_rotation"]
+    return series["wall_displacement"] + height * series["wall_rotation"]
 
 
 def friction_angles():
     """{"peak": φ, "residual": φ (the critical state)} in degrees, of the triaxial series of the
     wall's sand (its Mohr–Coulomb fit, ``mohr_coulomb.csv``)."""
-    out = OUT / "triaxial"
+    out = TRIAXIAL_OUT
     fit = out / "mohr_coulomb.csv"
     if not fit.exists():
         subprocess.run([sys.executable, "-m", "cosim.cli", "series", str(TRIAXIAL), "--stresses", "500", "1000",
@@ -75,14 +108,18 @@ def friction_angles():
     return {row[header.index("strength")]: float(row[header.index("phi_deg")]) for row in rows}
 
 
-def active(series, info):
-    """K_h, the resultant's height / H, δ (deg) once the wall has moved ACTIVE_FROM."""
-    moved = travel(series) >= ACTIVE_FROM
-    fx, fz = -np.mean(series["wall_force_x"][moved]), -np.mean(series["wall_force_z"][moved])
-    my = np.mean(series["wall_moment_y"][moved])
+def active(series, info, height):
+    """K_h, the resultant's height / H, δ (deg) once the wall has moved ACTIVE_FROM H, and the
+    travel / H by which the thrust has made MOBILISED of its drop from rest (row 0) to that value."""
+    moved = travel(series, height)
+    active_rows = moved >= ACTIVE_FROM * height
+    fx, fz = -np.mean(series["wall_force_x"][active_rows]), -np.mean(series["wall_force_z"][active_rows])
+    my = np.mean(series["wall_moment_y"][active_rows])
     gamma = RHO_S * G / (1.0 + info["fill"]["void_ratio"])
-    return {"K_h": 2.0 * fx / (gamma * H**2 * LY), "height": -my / fx / H if fx else float("nan"),
-            "delta": math.degrees(math.atan2(fz, fx)), "F_x": fx,
+    thrust = -series["wall_force_x"]
+    mobilised = moved[np.argmax(thrust <= fx + (1.0 - MOBILISED) * (thrust[0] - fx))] / height
+    return {"K_h": 2.0 * fx / (gamma * height**2 * LY), "height": -my / fx / height if fx else float("nan"),
+            "delta": math.degrees(math.atan2(fz, fx)), "F_x": fx, "mobilised": mobilised,
             "wall_clock": info["wall_clock_s"]["total_without_compilation_s"], "grains": info["grains"],
             "e": info["fill"]["void_ratio"]}
 
@@ -100,31 +137,34 @@ def coulomb_horizontal(phi, delta):
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13])
-    parser.add_argument("--rotation", action="store_true", help="the wall rotating about its toe")
+    choice = parser.add_mutually_exclusive_group()
+    choice.add_argument("--rotation", action="store_true", help="the small wall rotating about its toe")
+    choice.add_argument("--full", action="store_true", help="the full-size translating wall")
     args = parser.parse_args()
-    case, out = (ROTATION, ROTATION_OUT) if args.rotation else (CASE, OUT)
+    variant = VARIANTS["rotating" if args.rotation else "full" if args.full else "translating"]
     results, curves = {m: [] for m in MODELS}, {m: [] for m in MODELS}
     for seed in args.seeds:
         for model in MODELS:
-            series, info = run(seed, model, case, out)
-            results[model].append(active(series, info))
-            curves[model].append((travel(series), -series["wall_force_x"]))
-    lines = ["| seed | model | grains | e | F_x active [N] | K_h | height / H | δ [deg] | wall-clock [s] |",
-             "|---|---|---|---|---|---|---|---|---|"]
+            series, info = run(seed, model, variant)
+            results[model].append(active(series, info, variant.height))
+            curves[model].append((travel(series, variant.height), -series["wall_force_x"]))
+    lines = ["| seed | model | grains | e | F_x active [N] | K_h | height / H | δ [deg] | Δ/H to active | "
+             "wall-clock [s] |", "|---|---|---|---|---|---|---|---|---|---|"]
     for k, seed in enumerate(args.seeds):
         for model in MODELS:
             r = results[model][k]
             lines.append(f"| {seed} | {'all-DEM' if model == 'dem' else model} | {r['grains']:,} | {r['e']:.3f} | "
                          f"{r['F_x']:.4f} | {r['K_h']:.3f} | {r['height']:.2f} | {r['delta']:.1f} | "
-                         f"{r['wall_clock']:.0f} |")
+                         f"{r['mobilised']:.4f} | {r['wall_clock']:.0f} |")
     mean = {m: {q: float(np.mean([r[q] for r in results[m]])) for q in ("F_x", "K_h", "height", "delta",
-                                                                        "wall_clock")} for m in MODELS}
+                                                                        "mobilised", "wall_clock")} for m in MODELS}
     spread = {m: float(np.std([r["K_h"] for r in results[m]], ddof=1)) if len(args.seeds) > 1 else 0.0
               for m in MODELS}
     for model in MODELS:
         m = mean[model]
         lines.append(f"| mean | {'all-DEM' if model == 'dem' else model} | | | {m['F_x']:.4f} | {m['K_h']:.3f} "
-                     f"(± {spread[model]:.3f}) | {m['height']:.2f} | {m['delta']:.1f} | {m['wall_clock']:.0f} |")
+                     f"(± {spread[model]:.3f}) | {m['height']:.2f} | {m['delta']:.1f} | {m['mobilised']:.4f} | "
+                     f"{m['wall_clock']:.0f} |")
     difference = mean["coupled"]["K_h"] / mean["dem"]["K_h"] - 1.0
     lines.append(f"\ncoupled against all-DEM, mean K_h: {100 * difference:+.1f} %; wall-clock "
                  f"{mean['dem']['wall_clock'] / mean['coupled']['wall_clock']:.1f}x less for the coupled model")
@@ -137,13 +177,12 @@ def main():
         lines.append(f"| {name} | {phi:.1f} | {rankine(phi):.3f} | {coulomb} |")
     text = "\n".join(lines) + "\n"
     print(text)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "table.md").write_text(text)
-    name = "retaining_wall_rotation_seeds" if args.rotation else "retaining_wall_seeds"
-    plot(curves, ROOT / "docs" / f"{name}.png", "rotating about its toe" if args.rotation else "translating")
+    variant.out.mkdir(parents=True, exist_ok=True)
+    (variant.out / "table.md").write_text(text)
+    plot(curves, variant)
 
 
-def plot(curves, path, motion):
+def plot(curves, variant):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -152,14 +191,14 @@ def plot(curves, path, motion):
         label = "coupled (DEM zone + FE)" if model == "coupled" else "all-DEM"
         for k, (x, f) in enumerate(curves[model]):
             ax.plot(1e3 * x, f, color=color, lw=1.0, alpha=0.7, label=label if k == 0 else None)
-    ax.axvline(1e3 * ACTIVE_FROM, color="0.8", lw=0.8, zorder=0)
+    ax.axvline(1e3 * ACTIVE_FROM * variant.height, color="0.8", lw=0.8, zorder=0)
     ax.set_xlabel("wall top's displacement away from the backfill [mm]")
     ax.set_ylabel("horizontal thrust on the wall F_x [N]")
-    ax.set_title(f"retaining wall, small (H = 60 mm, 10 mm slice), {motion}: one line per packing")
+    ax.set_title(f"retaining wall, {variant.title}: one line per packing", fontsize=10)
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(ROOT / "docs" / f"{variant.picture}.png", dpi=120)
     plt.close(fig)
 
 
