@@ -74,9 +74,9 @@ class GeostaticStress:
     ``acceleration`` below a level ground surface through ``ground``, with the earth pressure
     coefficient at rest ``K0``:
 
-        σ0 = σ_v [K0 (I − ĝ ĝᵀ) + ĝ ĝᵀ],   σ_v = −ρ |g| d,   d = (x − x_ground)·ĝ
+        σ0 = σ_v [K0 (I − ĝ ĝᵀ) + ĝ ĝᵀ],   σ_v = −ρ g d,   d = (x − x_ground)·ĝ
 
-    (tension positive, ĝ = g/|g|, ρ the cells' density; e.g. Potts & Zdravković, *Finite element
+    (tension positive, ĝ = g / ``|g|``, ρ the cells' density; e.g. Potts & Zdravković, *Finite element
     analysis in geotechnical engineering*, vol. 1, §11.2). It satisfies div σ0 + ρ g = 0 with no
     traction on the ground surface; the solver adds −∫ ∇w : σ0 dx to the external force, so a
     body of soil given its own weight and this stress starts in equilibrium and u, p, the von

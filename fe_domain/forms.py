@@ -37,7 +37,7 @@ def von_mises(u, G, initial_stress=None):
 
 
 def geostatic_stress(x, indicator, rho, gravity, ground, k0):
-    """σ0 = χ σ_v [K0 (I − ĝ ĝᵀ) + ĝ ĝᵀ], σ_v = −ρ |g| (x − x_ground)·ĝ (tension positive; χ = 1
+    """σ0 = χ σ_v [K0 (I − ĝ ĝᵀ) + ĝ ĝᵀ], σ_v = −ρ ``|g|`` (x − x_ground)·ĝ (tension positive; χ = 1
     on the cells it applies to, 0 elsewhere); :class:`fe_domain.boundary.GeostaticStress`.
     ``gravity`` g and ``ground`` are constant vectors, ``k0`` a constant."""
     magnitude = ufl.sqrt(ufl.dot(gravity, gravity))
