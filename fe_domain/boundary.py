@@ -96,6 +96,39 @@ class GeostaticStress:
 
 
 @dataclass(frozen=True)
+class UniformStress:
+    """A uniform initial stress ``stress`` (3 × 3, Pa, tension positive) of the cells of
+    ``groups``: the in-situ stress of deep ground, where its change over the model's height is
+    small (the closed-form solutions of tunnel linings assume it). Load −∫ σ0 : ∇w, as
+    :class:`GeostaticStress`."""
+
+    stress: Sequence[Sequence[float]]
+    groups: Sequence[str]
+
+
+@dataclass(frozen=True)
+class Contraction:
+    """A shrinking of the cells of ``groups`` in the plane normal to ``axis`` (a tunnel lining's
+    section), the eigenstrain ε* = −c (I − â âᵀ) with c = amplitude(t) · ``strain``: the
+    "contraction" of a lining that models a tunnel's volume loss (e.g. Vermeer & Brinkgreve,
+    PLAXIS manual; Potts & Zdravković vol. 2, §2.4). A free ring shrinks its radius by the
+    fraction c and its area by about 2c, so c = V_L / 2 for a volume loss V_L; the ground
+    around it holds it back. It enters as the initial stress σ* = −C:ε* = c (2G (I − â âᵀ) + 2λ I),
+    λ = K − 2G/3 of each cell (the solver's constant load −∫ σ* : ∇w, times the amplitude)."""
+
+    strain: float
+    axis: Sequence[float]
+    groups: Sequence[str]
+    amplitude: Callable[[float], float] = constant
+
+    def __post_init__(self):
+        if not 0 < self.strain < 0.5:
+            raise ValueError(f"Contraction.strain = {self.strain!r}: must lie in (0, 0.5)")
+        if not np.linalg.norm(self.axis) > 0:
+            raise ValueError(f"Contraction.axis = {list(self.axis)!r}: must not be zero")
+
+
+@dataclass(frozen=True)
 class MassProportionalDamping:
     """f_damp = α M v^{n−½}, α in 1/s (critical for a mode ω when α = 2ω)."""
 

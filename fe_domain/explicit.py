@@ -68,6 +68,7 @@ from petsc4py import PETSc
 from fe_domain import compiled, forms, jit
 from fe_domain.boundary import (
     BodyForce,
+    Contraction,
     Fixed,
     GeostaticStress,
     LocalNonViscousDamping,
@@ -76,6 +77,7 @@ from fe_domain.boundary import (
     NormalPressure,
     PrescribedVelocity,
     Traction,
+    UniformStress,
     constant,
 )
 from fe_domain.mesh import TaggedMesh
@@ -114,7 +116,8 @@ class ExplicitSolid:
 
     def __init__(self, tagged_mesh: TaggedMesh, material: Material | Mapping[str, Material], *,
                  boundary_conditions: Sequence[Fixed | PrescribedVelocity] = (),
-                 loads: Sequence[Traction | NormalPressure | BodyForce | GeostaticStress] = (),
+                 loads: Sequence[Traction | NormalPressure | BodyForce | GeostaticStress | UniformStress
+                                 | Contraction] = (),
                  damping=None, formulation: str = "mixed",
                  alpha_tau: float = DEFAULT_ALPHA_TAU, safety_factor: float = 0.5,
                  dt: float | None = None, compiled: bool | None = None):
@@ -279,17 +282,21 @@ class ExplicitSolid:
         self._prescribed = prescribed
 
     def _setup_loads(self, loads):
-        """Assemble each load once into a nodal vector; f_ext(t) = Σ amplitude_i(t) F_i. The
-        geostatic stresses together make one constant load (−∫ σ0 : ∇w) and
-        ``initial_stress`` (σ0, a UFL tensor; None without)."""
+        """Assemble each load once into a nodal vector; f_ext(t) = Σ amplitude_i(t) F_i. A
+        geostatic stress or a contraction is an initial stress σ0_k, its load −∫ σ0_k : ∇w;
+        ``initial_stress`` is their sum at the solver's time (a UFL tensor, brought up to date
+        by :meth:`update_initial_stress`; None without)."""
         w = ufl.TestFunction(self.V)
         ds = ufl.Measure("ds", domain=self.mesh, subdomain_data=self.tagged_mesh.facet_tags)
-        self._loads = []
-        geostatic = [load for load in loads if isinstance(load, GeostaticStress)]
-        self.initial_stress = self._initial_stress(geostatic) if geostatic else None
-        forms_ = [(forms.initial_stress_load(w, self.initial_stress), constant)] if geostatic else []
+        self._loads, forms_, self._stress_amplitudes = [], [], []
+        terms = []
         for load in loads:
-            if isinstance(load, GeostaticStress):
+            if isinstance(load, (GeostaticStress, UniformStress, Contraction)):
+                stress, amplitude = self._initial_stress_term(load), getattr(load, "amplitude", constant)
+                forms_.append((forms.initial_stress_load(w, stress), amplitude))
+                scale = fem.Constant(self.mesh, PETSc.ScalarType(amplitude(self.time)))
+                self._stress_amplitudes.append((scale, amplitude))
+                terms.append(scale * stress)
                 continue
             if isinstance(load, BodyForce):
                 form = forms.body_force_load(w, self.rho, self._constant(load.acceleration))
@@ -301,24 +308,34 @@ class ExplicitSolid:
                 form = forms.normal_pressure_load(w, self._constant(load.pressure), ds(tag),
                                                   ufl.FacetNormal(self.mesh))
             else:
-                raise TypeError(f"load {load!r}: not Traction, NormalPressure, BodyForce or GeostaticStress")
+                raise TypeError(f"load {load!r}: not Traction, NormalPressure, BodyForce, GeostaticStress, "
+                                "UniformStress or Contraction")
             forms_.append((form, load.amplitude))
+        self.initial_stress = sum(terms[1:], terms[0]) if terms else None
         for form, amplitude in forms_:
             vector = dolfinx.la.vector(self.V.dofmap.index_map, 3)
             self._assemble(vector, fem.form(form))
             self._loads.append((vector.array.reshape(-1, 3).copy(), amplitude))
 
-    def _initial_stress(self, geostatic):
-        """σ0 of the geostatic stresses (:func:`forms.geostatic_stress`), each on its groups' cells."""
-        x = ufl.SpatialCoordinate(self.mesh)
-        total = 0
-        for load in geostatic:
-            indicator = fem.Function(self.D0)
-            for group in load.groups:
-                indicator.x.array[self.D0.dofmap.list.array[self.tagged_mesh.cells(group)]] = 1.0
-            total = total + forms.geostatic_stress(x, indicator, self.rho, self._constant(load.acceleration),
-                                                   self._constant(load.ground), self._constant(load.K0))
-        return total
+    def _initial_stress_term(self, load):
+        """σ0 of one geostatic, uniform or contraction stress (:mod:`fe_domain.forms`) on its groups' cells."""
+        indicator = fem.Function(self.D0)
+        for group in load.groups:
+            indicator.x.array[self.D0.dofmap.list.array[self.tagged_mesh.cells(group)]] = 1.0
+        if isinstance(load, UniformStress):
+            return indicator * ufl.as_matrix(np.asarray(load.stress, dtype=float).tolist())
+        if isinstance(load, Contraction):
+            axis = np.asarray(load.axis, dtype=float) / np.linalg.norm(load.axis)
+            return forms.contraction_stress(indicator, self.G, self.K, self._constant(axis),
+                                            self._constant(load.strain))
+        return forms.geostatic_stress(ufl.SpatialCoordinate(self.mesh), indicator, self.rho,
+                                      self._constant(load.acceleration), self._constant(load.ground),
+                                      self._constant(load.K0))
+
+    def update_initial_stress(self) -> None:
+        """Set ``initial_stress``'s amplitudes to the solver's time (before evaluating it)."""
+        for scale, amplitude in self._stress_amplitudes:
+            scale.value = amplitude(self.time)
 
     def _constant(self, value):
         return fem.Constant(self.mesh, PETSc.ScalarType(value) if np.ndim(value) == 0

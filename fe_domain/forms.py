@@ -47,6 +47,14 @@ def geostatic_stress(x, indicator, rho, gravity, ground, k0):
     return indicator * sigma_v * (k0 * (ufl.Identity(3) - vertical) + vertical)
 
 
+def contraction_stress(indicator, G, K, axis, strain):
+    """σ* = χ c (2G (I − â âᵀ) + 2λ I), λ = K − 2G/3: the stress that holds the in-plane
+    eigenstrain −c (I − â âᵀ) (``axis`` â a constant unit vector, ``strain`` c a constant);
+    :class:`fe_domain.boundary.Contraction`."""
+    plane = ufl.Identity(3) - ufl.outer(axis, axis)
+    return indicator * strain * (2.0 * G * plane + 2.0 * (K - 2.0 * G / 3.0) * ufl.Identity(3))
+
+
 def initial_stress_load(w, initial_stress):
     """−∫ σ0 : ∇w, the nodal force that holds an initial stress σ0 in equilibrium."""
     return -ufl.inner(initial_stress, ufl.grad(w)) * ufl.dx

@@ -44,6 +44,8 @@ class FieldWriter:
 
     def write(self) -> None:
         """Append the current state at t = solver.time."""
+        if self.solver.initial_stress is not None:
+            self.solver.update_initial_stress()
         for field, expression in self.cell_fields:
             field.interpolate(expression)
         t = self.solver.time

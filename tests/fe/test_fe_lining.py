@@ -1,0 +1,62 @@
+"""A tunnel lining's section forces (fe_domain.lining) and contraction (fe_domain.boundary.
+Contraction) on a quarter ring (meshes/ring.geo, planes of symmetry x = 0 and z = 0) against
+closed forms: Lamé's thick ring under external pressure, and a free ring that contracts."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fe_domain.boundary import Contraction, Fixed, LocalNonViscousDamping, Material, NormalPressure, ramp
+from fe_domain.explicit import ExplicitSolid
+from fe_domain.lining import Ring, section_forces
+from fe_domain.mesh import load_geo
+
+RI, RO, E, NU = 0.045, 0.05, 1e9, 0.2
+RING = Ring(centre=(0.0, 0.0, 0.0), axis=(0.0, 1.0, 0.0), up=(0.0, 0.0, 1.0), inner_radius=RI, outer_radius=RO)
+SYMMETRY = [Fixed("x0", (0,)), Fixed("z0", (2,)), Fixed("sides", (1,))]   # plane strain along y
+ANGLES = [10.0, 30.0, 45.0, 60.0, 80.0]
+
+
+def ring(load):
+    """The quarter ring, 2 cells through its 5 mm, loaded by ``load(amplitude)`` ramped over 1,500
+    steps and brought to rest by local damping over 1,500 more."""
+    tagged = load_geo("ring", 0.0025, MPI.COMM_SELF, {"Ri": RI, "Ro": RO, "h": 0.0025, "Ly": 0.005})
+    material = Material(E=E, nu=NU, rho=2500.0)
+    probe = ExplicitSolid(tagged, material, boundary_conditions=SYMMETRY)
+    solid = ExplicitSolid(tagged, material, boundary_conditions=SYMMETRY, loads=[load(ramp(1500 * probe.dt))],
+                          damping=LocalNonViscousDamping(0.7))
+    solid.run(3000)
+    return solid
+
+
+def test_thrust_and_moment_of_a_thick_ring_under_external_pressure():
+    """Lamé: σ_θθ = −q b²/(b² − a²) (1 + a²/r²), so N = −∫ σ_θθ dr = q b at every angle and
+    M = −∫ σ_θθ (r − r_m) dr = q b² a²/(b² − a²) [ln(b/a) − r_m (b − a)/(a b)], nearly nothing."""
+    q = 1e5
+    forces = section_forces(ring(lambda amplitude: NormalPressure("outer", q, amplitude)), "ring", RING, ANGLES,
+                            window_deg=10.0)
+    a, b, mid = RI, RO, 0.5 * (RI + RO)
+    lame_moment = q * b**2 * a**2 / (b**2 - a**2) * (np.log(b / a) - mid * (b - a) / (a * b))
+    assert forces.thrust == pytest.approx(q * b, rel=0.02)
+    assert np.abs(forces.moment - lame_moment).max() < 0.01 * q * b * (b - a)
+
+
+def test_a_free_ring_contracts_without_stress():
+    """The eigenstrain −c (I − ŷŷ) is compatible: the free ring shrinks to u = −c (x, 0, z),
+    exactly linear, with no stress (N and M nothing against E c t and E c t²)."""
+    c = 0.005
+    solid = ring(lambda amplitude: Contraction(c, (0.0, 1.0, 0.0), ("ring",), amplitude))
+    expected = -c * solid.node_coordinates * [1.0, 0.0, 1.0]
+    assert np.abs(solid.displacement - expected).max() < 2e-3 * c * RO
+    forces = section_forces(solid, "ring", RING, ANGLES, window_deg=10.0)
+    t = RO - RI
+    assert np.abs(forces.thrust).max() < 1e-3 * E * c * t
+    assert np.abs(forces.moment).max() < 1e-3 * E * c * t**2
+
+
+def test_a_ring_one_cell_thick_is_refused():
+    """The fit across the thickness needs cells at two radii."""
+    tagged = load_geo("ring", 0.01, MPI.COMM_SELF, {"Ri": RI, "Ro": RO, "h": 0.01, "Ly": 0.01})
+    solid = ExplicitSolid(tagged, Material(E=E, nu=NU, rho=2500.0), boundary_conditions=SYMMETRY)
+    with pytest.raises(ValueError, match="do not span its thickness"):
+        section_forces(solid, "ring", RING, [45.0], window_deg=2.0)
