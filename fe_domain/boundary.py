@@ -100,10 +100,12 @@ class UniformStress:
     """A uniform initial stress ``stress`` (3 × 3, Pa, tension positive) of the cells of
     ``groups``: the in-situ stress of deep ground, where its change over the model's height is
     small (the closed-form solutions of tunnel linings assume it). Load −∫ σ0 : ∇w, as
-    :class:`GeostaticStress`."""
+    :class:`GeostaticStress`, times amplitude(t) (e.g. a ramp: the excavation's unloading
+    applied gradually)."""
 
     stress: Sequence[Sequence[float]]
     groups: Sequence[str]
+    amplitude: Callable[[float], float] = constant
 
 
 @dataclass(frozen=True)

@@ -332,6 +332,19 @@ class ExplicitSolid:
                                       self._constant(load.acceleration), self._constant(load.ground),
                                       self._constant(load.K0))
 
+    def load_vector(self, time: float) -> np.ndarray:
+        """The assembled loads at ``time``, Σ amplitude_i(time) F_i (n_nodes, 3) (without
+        ``external_force``): e.g. the right-hand side of a static solve with ``operators()``."""
+        total = np.zeros((self.n_nodes, 3))
+        for vector, amplitude in self._loads:
+            total += amplitude(time) * vector
+        return total
+
+    @property
+    def fixed_dofs(self) -> np.ndarray:
+        """The local dof numbers (3 × node + component) held at zero velocity."""
+        return self._fixed_dofs
+
     def update_initial_stress(self) -> None:
         """Set ``initial_stress``'s amplitudes to the solver's time (before evaluating it)."""
         for scale, amplitude in self._stress_amplitudes:

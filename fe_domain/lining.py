@@ -1,17 +1,24 @@
 """Section forces of a ring of FE cells (a tunnel lining): the thrust N(θ) and the bending
-moment M(θ) per unit length of the tunnel, from the cells' stresses.
+moment M(θ) per unit length of the tunnel.
 
 Around the ring, θ is measured in its section plane from the crown (the ``up`` direction,
-θ = 0) towards the side ``axis × up`` (θ = 90°: the springline) to the invert (180°). At an
-angle θ the hoop stress σ_θθ = t̂ᵀ σ t̂ (t̂ the ring's tangent) of the cells whose centres lie
-within ``window`` of θ is fitted by weighted least squares (the cells' volumes as weights)
-with a line across the thickness, σ_θθ ≈ a + b (r − r_m), r_m the mid-radius; then
+θ = 0) towards the side ``axis × up`` (θ = 90°: the springline) to the invert (180°). A cut
+at θ splits the ring's cells into those whose centres lie before θ (side A) and the rest
+(side B); the force that side B exerts on side A is the sum, over the nodes the two sides
+share, of the B cells' nodal forces, F = −Σ_{e∈B} ∫_e Bᵀσ (the element's nodal internal
+forces, with the whole stress σ: 2G dev ε(u) + p I plus any initial stress). Its moment is
+taken about the point of the mid-radius r_m at θ, and with t̂ the tangent (towards B) and â
+the axis
 
-    N = −∫ σ_θθ dr = −a t                    (compression positive)
-    M = −∫ σ_θθ (r − r_m) dr = −b t³ / 12    (positive when the intrados is in tension)
+    N = −F·t̂                      (compression positive)
+    M = −Σ (x_a − x_m) × F_a · â    (positive when the intrados is in tension)
 
-over the thickness t (N/m and N·m/m: per metre of tunnel). The stress of a P1 cell is
-constant, so the fit needs cells at two radii at least: a lining two or more cells thick.
+divided by the ring's length along the axis (N/m and N·m/m: per metre of tunnel). These are
+the resultants the discrete ring transmits, exact by equilibrium for any stress field the
+cells carry (the "nodal force" method of section forces), rather than a fit of its
+stresses: linear tetrahedra represent bending stress across a lining two or three cells thick
+poorly, while their nodal forces still balance. The cut follows the cells' faces, within
+about a cell of the radial line at θ.
 """
 
 from __future__ import annotations
@@ -52,10 +59,12 @@ class SectionForces:
 
 
 def cell_stresses(solid) -> np.ndarray:
-    """The whole stress of each local cell, (cells, 3, 3): 2G dev ε(u) + p I, plus the solid's
-    initial stress at its time (p at the cell's centre: the mean of its nodes' values)."""
+    """The whole stress of each local cell, (cells, 3, 3): 2G dev ε(u) + p I (the displacement
+    formulation: p = K div u), plus the solid's initial stress at its time (p at the cell's
+    centre: the mean of its nodes' values)."""
     space = fem.TensorFunctionSpace(solid.mesh, ("DG", 0))
-    stress = forms.deviatoric_stress(solid.u, solid.G) + solid.p * ufl.Identity(3)
+    pressure = solid.p if solid.mixed else solid.K * ufl.div(solid.u)
+    stress = forms.deviatoric_stress(solid.u, solid.G) + pressure * ufl.Identity(3)
     if solid.initial_stress is not None:
         solid.update_initial_stress()
         stress = stress + solid.initial_stress
@@ -64,33 +73,84 @@ def cell_stresses(solid) -> np.ndarray:
     return field.x.array.reshape(-1, 3, 3)[space.dofmap.list.array]
 
 
-def section_forces(solid, group: str, ring: Ring, angles_deg, window_deg: float) -> SectionForces:
+def section_forces(solid, group: str, ring: Ring, angles_deg) -> SectionForces:
     """N(θ) and M(θ) of the cells of ``group`` at ``angles_deg`` (module docstring); collective
-    (every rank's owned cells enter every fit)."""
+    (every rank's owned cells enter every cut)."""
     owned = solid.tagged_mesh.cells(group)
     owned = owned[owned < solid.mesh.topology.index_map(3).size_local]
-    nodes = solid.node_coordinates[solid.Q.dofmap.list.array.reshape(-1, 4)[owned]]   # (cells, 4, 3)
-    edges = nodes[:, 1:] - nodes[:, :1]
+    cell_nodes = solid.Q.dofmap.list.array.reshape(-1, 4)[owned]
+    x = solid.node_coordinates[cell_nodes]                                  # (cells, 4, 3)
+    edges = x[:, 1:] - x[:, :1]
     volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
+    gradients = np.empty_like(x)                                            # ∇N_a of each cell
+    gradients[:, 1:] = np.linalg.inv(np.transpose(edges, (0, 2, 1)))
+    gradients[:, 0] = -gradients[:, 1:].sum(axis=1)
+    nodal = volume[:, None, None] * np.einsum("cij,caj->cai", cell_stresses(solid)[owned], gradients)
     axis, up, side = ring.frame()
-    offset = nodes.mean(axis=1) - np.asarray(ring.centre, float)
-    offset -= np.outer(offset @ axis, axis)
+    centre = np.asarray(ring.centre, float)
+    offset = x.mean(axis=1) - centre
     angle = np.arctan2(offset @ side, offset @ up)
-    radius = np.linalg.norm(offset, axis=1)
-    tangent = np.outer(np.cos(angle), side) - np.outer(np.sin(angle), up)
-    hoop = np.einsum("ci,cij,cj->c", tangent, cell_stresses(solid)[owned], tangent)
-    gathered = solid.comm.allgather(np.column_stack([angle, radius, hoop, volume]))
-    angle, radius, hoop, volume = np.concatenate(gathered).T
-    mid, thickness = 0.5 * (ring.inner_radius + ring.outer_radius), ring.outer_radius - ring.inner_radius
+    parts = solid.comm.allgather((solid.global_node_index[cell_nodes], nodal, angle, x))
+    nodes, nodal, angle, x = (np.concatenate(p) for p in zip(*parts, strict=True))
+    along = x.reshape(-1, 3) @ axis
+    length = np.ptp(along)
+    mid = 0.5 * (ring.inner_radius + ring.outer_radius)
     thrust, moment = [], []
     for target in np.radians(np.asarray(angles_deg, float)):
-        near = np.abs(np.angle(np.exp(1j * (angle - target)))) <= 0.5 * np.radians(window_deg)
-        if near.sum() < 2 or np.ptp(radius[near]) < 0.25 * thickness:
-            raise ValueError(f"lining '{group}': the cells within {window_deg}° of {np.degrees(target):.1f}° do not "
-                             "span its thickness (a lining two or more cells thick, or a wider window)")
-        design = np.column_stack([np.ones(near.sum()), radius[near] - mid]) * np.sqrt(volume[near])[:, None]
-        (a, b), *_ = np.linalg.lstsq(design, hoop[near] * np.sqrt(volume[near]), rcond=None)
-        thrust.append(-a * thickness)
-        moment.append(-b * thickness ** 3 / 12.0)
+        before = angle < target
+        shared = np.intersect1d(nodes[before], nodes[~before])
+        if len(shared) == 0:
+            raise ValueError(f"lining '{group}': no cut at {np.degrees(target):.1f}° "
+                             "(it lies outside the ring's cells)")
+        on_cut = np.isin(nodes, shared) & ~before[:, None]
+        force = -nodal[on_cut]                                              # B's cells on the shared nodes
+        tangent = np.cos(target) * side - np.sin(target) * up
+        point = centre + mid * (np.sin(target) * side + np.cos(target) * up)
+        arm = x[on_cut] - point
+        arm -= np.outer(arm @ axis, axis)                                   # in the section plane
+        thrust.append(-force.sum(axis=0) @ tangent / length)
+        moment.append(-np.cross(arm, force).sum(axis=0) @ axis / length)
     return SectionForces(np.asarray(angles_deg, float), np.array(thrust), np.array(moment))
 
+
+@dataclass(frozen=True)
+class LinedTunnel:
+    """A circular lining of mid-radius ``radius`` and thickness ``thickness`` (m) in elastic ground
+    (``ground_E``, ``ground_nu``), the lining ``lining_E``, ``lining_nu``; in-situ stress
+    σ_v = ``pressure`` (compression positive, Pa), σ_h = ``K`` σ_v."""
+    radius: float
+    thickness: float
+    ground_E: float
+    ground_nu: float
+    lining_E: float
+    lining_nu: float
+    pressure: float
+    K: float
+
+
+def einstein_schwartz(tunnel: LinedTunnel, angles_deg):
+    """Thrust and moment (N/m, N·m/m) of a lining tied to the ground ("no slip") under the
+    excavation loading, at θ from the crown (Einstein & Schwartz, J. Geotech. Eng. Div. ASCE
+    105(GT4), 1979; as in the FLAC verification "lined circular tunnel"; plane strain, per
+    metre of tunnel, a thin lining in a deep tunnel), with ψ = 90° − θ from the springline:
+
+        C* = E R (1 − ν_l²) / (E_l t (1 − ν²)),   F* = E R³ (1 − ν_l²) / (E_l t³/12 (1 − ν²))
+        a0* = C* F* (1 − ν) / (C* + F* + C* F* (1 − ν))
+        β = ((6 + F*) C* (1 − ν) + 2 F* ν) / (3 F* + 3 C* + 2 C* F* (1 − ν))
+        b2* = C* (1 − ν) / (2 (C* (1 − ν) + 4ν − 6β − 3β C* (1 − ν))),   a2* = β b2*
+        T = p R [½ (1 + K)(1 − a0*) + ½ (1 − K)(1 + 2 a2*) cos 2ψ]        (compression positive)
+        M = −p R² ¼ (1 − K)(1 − 2 a2* + 2 b2*) cos 2ψ     (this module's sign: intrados in tension +)
+
+    Returns (thrust, moment, C*, F*)."""
+    E, nu, El, nul = tunnel.ground_E, tunnel.ground_nu, tunnel.lining_E, tunnel.lining_nu
+    t, R, p, K = tunnel.thickness, tunnel.radius, tunnel.pressure, tunnel.K
+    c = E * R * (1 - nul**2) / (El * t * (1 - nu**2))
+    f = E * R**3 * (1 - nul**2) / (El * t**3 / 12 * (1 - nu**2))
+    a0 = c * f * (1 - nu) / (c + f + c * f * (1 - nu))
+    beta = ((6 + f) * c * (1 - nu) + 2 * f * nu) / (3 * f + 3 * c + 2 * c * f * (1 - nu))
+    b2 = c * (1 - nu) / (2 * (c * (1 - nu) + 4 * nu - 6 * beta - 3 * beta * c * (1 - nu)))
+    a2 = beta * b2
+    psi = np.radians(90.0 - np.asarray(angles_deg, float))
+    thrust = p * R * (0.5 * (1 + K) * (1 - a0) + 0.5 * (1 - K) * (1 + 2 * a2) * np.cos(2 * psi))
+    moment = -p * R**2 * 0.25 * (1 - K) * (1 - 2 * a2 + 2 * b2) * np.cos(2 * psi)
+    return thrust, moment, c, f

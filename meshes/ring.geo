@@ -5,7 +5,7 @@
 // layers (Ly thick in all).
 // Physical names: volumes "ring" and, with L > 0, "ground"; surfaces "inner" (r = Ri),
 // "outer" (r = Ro; without ground only), "x0" (x = 0), "z0" (z = 0), "sides" (y = 0 and
-// y = Ly) and, with ground, "far" (x = L and z = L).
+// y = Ly) and, with ground, "far_x" (x = L) and "far_z" (z = L).
 SetFactory("OpenCASCADE");
 DefineConstant[ Ri = {0.045, Name "Parameters/Ri"}, Ro = {0.05, Name "Parameters/Ro"},
                 L = {0.0, Name "Parameters/L"}, Ly = {0.004, Name "Parameters/Ly"},
@@ -43,7 +43,8 @@ If (L > 0)
   Physical Volume("ground") = {ground()};
   xfar() = Surface In BoundingBox{L - eps, -eps, -eps, L + eps, Ly + eps, L + eps};
   zfar() = Surface In BoundingBox{-eps, -eps, L - eps, L + eps, Ly + eps, L + eps};
-  Physical Surface("far") = {xfar(), zfar()};
+  Physical Surface("far_x") = {xfar()};
+  Physical Surface("far_z") = {zfar()};
 EndIf
 Physical Surface("x0") = Surface In BoundingBox{-eps, -eps, -eps, eps, Ly + eps, extent + eps};
 Physical Surface("z0") = Surface In BoundingBox{-eps, -eps, -eps, extent + eps, Ly + eps, eps};

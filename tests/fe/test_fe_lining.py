@@ -34,7 +34,7 @@ def test_thrust_and_moment_of_a_thick_ring_under_external_pressure():
     M = −∫ σ_θθ (r − r_m) dr = q b² a²/(b² − a²) [ln(b/a) − r_m (b − a)/(a b)], nearly nothing."""
     q = 1e5
     forces = section_forces(ring(lambda amplitude: NormalPressure("outer", q, amplitude)), "ring", RING, ANGLES,
-                            window_deg=10.0)
+                            )
     a, b, mid = RI, RO, 0.5 * (RI + RO)
     lame_moment = q * b**2 * a**2 / (b**2 - a**2) * (np.log(b / a) - mid * (b - a) / (a * b))
     assert forces.thrust == pytest.approx(q * b, rel=0.02)
@@ -48,15 +48,39 @@ def test_a_free_ring_contracts_without_stress():
     solid = ring(lambda amplitude: Contraction(c, (0.0, 1.0, 0.0), ("ring",), amplitude))
     expected = -c * solid.node_coordinates * [1.0, 0.0, 1.0]
     assert np.abs(solid.displacement - expected).max() < 2e-3 * c * RO
-    forces = section_forces(solid, "ring", RING, ANGLES, window_deg=10.0)
+    forces = section_forces(solid, "ring", RING, ANGLES, )
     t = RO - RI
     assert np.abs(forces.thrust).max() < 1e-3 * E * c * t
     assert np.abs(forces.moment).max() < 1e-3 * E * c * t**2
 
 
-def test_a_ring_one_cell_thick_is_refused():
-    """The fit across the thickness needs cells at two radii."""
+def test_a_cut_outside_the_ring_is_refused():
+    """The quarter ring spans 0–90° from the crown: no cut at 120°."""
     tagged = load_geo("ring", 0.01, MPI.COMM_SELF, {"Ri": RI, "Ro": RO, "h": 0.01, "Ly": 0.01})
     solid = ExplicitSolid(tagged, Material(E=E, nu=NU, rho=2500.0), boundary_conditions=SYMMETRY)
-    with pytest.raises(ValueError, match="do not span its thickness"):
-        section_forces(solid, "ring", RING, [45.0], window_deg=2.0)
+    with pytest.raises(ValueError, match="no cut at 120.0°"):
+        section_forces(solid, "ring", RING, [120.0])
+
+
+def test_lined_tunnel_against_einstein_schwartz():
+    """A lining (t/R = 0.105, F* = 18, C* = 0.017) tied to elastic ground with K = 0.5, the
+    excavation loading, solved statically (studies/lining_closed_form.py, four cells through the
+    lining): thrust within 10 % and moment within 10 % of its largest value of the no-slip closed
+    form at every angle. (Measured: thrust +0.4 … +8.3 %, the ground pressing on the extrados
+    R + t/2 rather than on the mid-radius of the thin-shell theory; moment within 6 %; two cells
+    through the lining read the moment 13–17 % high: linear tetrahedra are stiff in bending.)"""
+    import importlib.util
+    from pathlib import Path
+
+    from fe_domain.lining import LinedTunnel, einstein_schwartz
+    path = Path(__file__).resolve().parents[2] / "studies" / "lining_closed_form.py"
+    spec = importlib.util.spec_from_file_location("lining_closed_form", path)
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+    forces, _, _ = study.lined_tunnel(0.3, 0.00125, 0, 0.5, static=True)
+    tunnel = LinedTunnel(0.5 * (study.RI + study.RO), study.RO - study.RI, study.GROUND["E"], study.GROUND["nu"],
+                         study.LINING["E"], study.LINING["nu"], study.P, 0.5)
+    thrust, moment, _, _ = einstein_schwartz(tunnel, forces.angle_deg)
+    assert forces.thrust == pytest.approx(thrust, rel=0.10)
+    assert np.abs(forces.moment - moment).max() < 0.10 * np.abs(moment).max()
+    assert np.sign(forces.moment[0]) == np.sign(moment[0]) == 1.0   # K < 1: the crown's intrados in tension
