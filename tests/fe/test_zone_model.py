@@ -68,3 +68,25 @@ def test_a_zone_that_touches_no_fe_volume_is_refused(tmp_path):
                    'Physical Volume("zone") = {1};\nPhysical Volume("soil") = {2};\n')
     with pytest.raises(MeshError, match="shares no face with an FE volume"):
         split_model(str(geo), 0.5, {}, ["zone"], ["soil"], MPI.COMM_SELF)
+
+
+@pytest.mark.parametrize("cover", [0.1, 0.03], ids=["buried", "reaching-the-surface"])
+def test_a_ring_zone_around_a_tunnel_lining(cover):
+    """meshes/tunnel.geo (half model): a DEM zone ring of thickness a around a lining of outer
+    diameter D, FE soil beyond. The interface is the two half circles, the lining's extrados and
+    the ring's outside (where it is under ground), found from the cells; the zone's volume is
+    the half annulus (less what lies above the ground when a > C). The circles are faceted:
+    within 1 % (chords of h / R ≈ 0.1 rad)."""
+    D, a, Ly, h = 0.1, 0.05, 0.01, 0.005
+    parameters = {"D": D, "C": cover, "a": a, "Ly": Ly, "h": h, "h_far": 0.02}
+    split = split_model("tunnel.geo", 0.02, parameters, ["zone"], ["lining", "soil"], MPI.COMM_SELF)
+    ro, rz = D / 2, D / 2 + a
+    if cover >= a:
+        assert tets_volume(split.zone.tets) == pytest.approx(0.5 * np.pi * (rz**2 - ro**2) * Ly, rel=0.01)
+        assert area(split.zone.interface) == pytest.approx(np.pi * (ro + rz) * Ly, rel=0.01)
+        assert "ground" not in split.zone.free
+    else:   # the ring cut by the ground surface: its top is a free surface of the zone
+        assert area(split.zone.free["ground"]) > 0.0
+        assert area(split.zone.interface) < np.pi * (ro + rz) * Ly
+    assert sorted(split.fe.names(3)) == ["lining", "soil"]
+    assert area(split.zone.free["axis"]) == pytest.approx(2 * a * Ly if cover >= a else (a + cover) * Ly, rel=1e-9)

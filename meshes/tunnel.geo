@@ -1,0 +1,60 @@
+// A tunnel in a plane-strain slice of ground, half model (x >= 0; the plane x = 0 through the
+// tunnel's axis is a plane of symmetry). In the x-z section: ground from z = 0 (base) to
+// z = Hg (the ground surface), W wide; the opening of outer diameter D (the lining's outside)
+// with its crown at cover C below the surface; the lining, thickness t, inside it; the DEM
+// zone a ring of thickness a around the lining (cut by the ground surface when a > C); FE soil
+// beyond. The section is meshed with triangles, h near the tunnel growing to h_far, and
+// extruded along y in layers (Ly thick in all).
+// Physical names: volumes "lining", "zone", "soil"; surfaces "ground" (z = Hg), "base"
+// (z = 0), "far" (x = W), "axis" (x = 0), "sides" (y = 0 and y = Ly), "intrados" (the
+// lining's inside face). The zone's faces shared with the lining and the soil are the
+// coupling interface, found from the cells: no group for it.
+SetFactory("OpenCASCADE");
+DefineConstant[ D = {0.1, Name "Parameters/D"}, C = {0.1, Name "Parameters/C"},
+                t = {0.005, Name "Parameters/t"}, a = {0.05, Name "Parameters/a"},
+                W = {0.4, Name "Parameters/W"}, below = {0.2, Name "Parameters/below"},
+                Ly = {0.01, Name "Parameters/Ly"}, h = {0.005, Name "Parameters/h"},
+                h_far = {0.02, Name "Parameters/h_far"}, grow = {0.1, Name "Parameters/grow"} ];
+Hg = below + D + C;          // the ground surface
+zc = below + D / 2;          // the tunnel's axis
+Rectangle(1) = {0, 0, 0, W, Hg};
+Disk(2) = {0, zc, 0, D / 2 + a};
+Disk(3) = {0, zc, 0, D / 2};
+Disk(4) = {0, zc, 0, D / 2 - t};
+pieces() = BooleanFragments{ Surface{1}; Delete; }{ Surface{2, 3, 4}; Delete; };
+eps = 1e-4 * (W + Hg);   // OpenCASCADE bounding boxes carry a tolerance
+// keep the pieces inside the ground (x >= 0, z <= Hg) and outside the opening
+keep() = Surface In BoundingBox{-eps, -eps, -eps, W + eps, Hg + eps, eps};
+opening() = Surface In BoundingBox{-eps, zc - D / 2 + t - eps, -eps, D / 2 - t + eps, zc + D / 2 - t + eps, eps};
+drop() = pieces();
+drop() -= keep();
+drop() += opening();
+Recursive Delete { Surface{drop()}; }
+section() = Surface{:};
+Field[1] = MathEval;     // h within the ring (the lining and the zone), growing beyond it
+Field[1].F = Sprintf("%g + (%g - %g) * Min(1, Max(0, Sqrt(x^2 + (y - %g)^2) - %g) / %g)", h, h_far, h, zc, D / 2 + a, grow);
+Background Field = 1;
+Mesh.MeshSizeMin = 0.5 * h;
+Rotate {{1, 0, 0}, {0, 0, 0}, Pi / 2} { Surface{section()}; }
+Extrude {0, Ly, 0} { Surface{section()}; Layers{ Ceil(Ly / h) }; }
+// volumes, by their extents: the lining and zone rings are recognised by their bounding boxes
+ring_lining() = Volume In BoundingBox{-eps, -eps, zc - D / 2 - eps, D / 2 + eps, Ly + eps, zc + D / 2 + eps};
+ring_zone() = Volume In BoundingBox{-eps, -eps, zc - D / 2 - a - eps, D / 2 + a + eps, Ly + eps, Min(Hg, zc + D / 2 + a) + eps};
+ring_zone() -= ring_lining();
+soil() = Volume{:};
+soil() -= ring_zone();
+soil() -= ring_lining();
+Physical Volume("lining") = {ring_lining()};
+Physical Volume("zone") = {ring_zone()};
+Physical Volume("soil") = {soil()};
+Physical Surface("ground") = Surface In BoundingBox{-eps, -eps, Hg - eps, W + eps, Ly + eps, Hg + eps};
+Physical Surface("base") = Surface In BoundingBox{-eps, -eps, -eps, W + eps, Ly + eps, eps};
+Physical Surface("far") = Surface In BoundingBox{W - eps, -eps, -eps, W + eps, Ly + eps, Hg + eps};
+Physical Surface("axis") = Surface In BoundingBox{-eps, -eps, -eps, eps, Ly + eps, Hg + eps};
+sy0() = Surface In BoundingBox{-eps, -eps, -eps, W + eps, eps, Hg + eps};
+sy1() = Surface In BoundingBox{-eps, Ly - eps, -eps, W + eps, Ly + eps, Hg + eps};
+Physical Surface("sides") = {sy0(), sy1()};
+inner() = Surface In BoundingBox{-eps, -eps, zc - D / 2 + t - eps, D / 2 - t + eps, Ly + eps, zc + D / 2 - t + eps};
+inner() -= {sy0(), sy1()};
+inner() -= Surface In BoundingBox{-eps, -eps, -eps, eps, Ly + eps, Hg + eps};
+Physical Surface("intrados") = {inner()};
