@@ -487,6 +487,17 @@ class RigidBody(_Section):
                     "and holds the grains while they are filled in [Pa]")
 
 
+class EmbeddedLining(_Section):
+    volume: str = Field(description="a 'structure' volume that is a tunnel lining: a ring (or the part of one a "
+                                    "model of symmetry holds) about the line through `centre` along `axis`")
+    centre: Vec3 = Field(description="a point of the tunnel's axis [m]")
+    axis: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0], description="the tunnel's axis [-]")
+    volume_loss: float = Field(
+        default=0.0, ge=0, lt=0.2,
+        description="V_L: over the loading the lining contracts in its section by c = V_L / 2, ramped from 0 (a free "
+                    "ring's area would shrink by V_L; the ground holds it back, so the ground's loss is less) [-]")
+
+
 class EmbeddedSection(_Section):
     model: Literal["coupled", "dem"] = Field(
         default="coupled",
@@ -500,6 +511,10 @@ class EmbeddedSection(_Section):
     surfaces: list[EmbeddedSurface] = Field(
         default_factory=list, description="[[embedded.surfaces]]: supports of the FE and walls of the DEM")
     rigid: list[RigidBody] = Field(default_factory=list, description="[[embedded.rigid]]: rigid bodies that move")
+    linings: list[EmbeddedLining] = Field(
+        default_factory=list,
+        description="[[embedded.linings]]: structure volumes that are tunnel linings: their thrust and bending moment "
+                    "around the ring in series.csv and <volume>_sections.csv, and their contraction (volume loss)")
     loading_time: float = Field(gt=0, description="duration of the loading (the rigid bodies' motion) [s]")
     rows: int = Field(default=50, ge=5, le=100000, description="CSV rows over the loading [-]")
     sand_material: str = Field(default="sand", description="material name of the grains")
@@ -513,6 +528,12 @@ class EmbeddedSection(_Section):
                     "below this [-]")
     max_rest_time: float = Field(default=0.5, gt=0, description="safety cap on the simulated rest phase [s]")
     damping: float = Field(default=0.5, ge=0, lt=1, description="local non-viscous damping of the FE volumes [-]")
+    formulation: Literal["mixed", "displacement"] = Field(
+        default="mixed",
+        description="of the FE volumes: 'mixed' (u-p, free of volumetric locking as nu -> 0.5) or 'displacement' "
+                    "(P1); take 'displacement' with a lining or another structure much stiffer than the soil: the "
+                    "mixed form's pressure is continuous across their faces, smears the jump of the mean stress there "
+                    "and bends a lining (docs/validation.md, the lining against Einstein & Schwartz)")
     subcycles: Optional[int] = Field(
         default=None, ge=1, description="DEM steps per FE step [-]; default the largest the FE stability allows")
     fe_partition: Literal["replicated", "distributed"] = Field(
@@ -1275,6 +1296,13 @@ def _check_embedded(path, case):
     for i, s in enumerate(em.surfaces):
         if s.dem == "wall" and s.material is None:
             raise CaseError(path, f"embedded.surfaces[{i}].material", None, "a DEM wall needs a material")
+    structures = [v.group for v in em.volumes if v.role == "structure"]
+    for i, lining in enumerate(em.linings):
+        if lining.volume not in structures:
+            raise CaseError(path, f"embedded.linings[{i}].volume", lining.volume,
+                            f"a lining is a 'structure' volume of [[embedded.volumes]]: one of {structures}")
+        if not any(lining.axis):
+            raise CaseError(path, f"embedded.linings[{i}].axis", lining.axis, "the tunnel's axis must not be zero")
 
 
 # --------------------------------------------------------------------------- calibration files (cosim calibrate)

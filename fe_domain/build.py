@@ -15,7 +15,8 @@ TOML table) and returns the solver; it reads no files besides the mesh.  Tables:
     damping    {"type": "local", "alpha": 0.7}  or  {"type": "mass", "alpha": 50.0}
 
 ``components`` default to all three; ``ramp`` (s) makes the amplitude rise linearly
-from 0 to 1 over that time (default: constant).
+from 0 to 1 over that time (default: constant). A load may also be given as its record of
+``fe_domain.boundary`` (e.g. a ``Contraction`` with an amplitude of its own).
 """
 
 from __future__ import annotations
@@ -78,7 +79,9 @@ def _boundary_condition(index: int, table: dict):
     raise ValueError(f"boundary_conditions[{index}].type = {kind!r}: must be 'fixed' or 'velocity'")
 
 
-def _load(index: int, table: dict):
+def _load(index: int, table):
+    if not isinstance(table, dict):   # a record of fe_domain.boundary, given as is
+        return table
     kind = table.get("type")
     if kind == "traction":
         return Traction(table["boundary"], table["traction"], _amplitude(table))

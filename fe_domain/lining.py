@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
 from fe_domain import forms
 
@@ -58,59 +59,105 @@ class SectionForces:
     moment: np.ndarray      # N·m/m, positive when the intrados is in tension
 
 
-def cell_stresses(solid) -> np.ndarray:
-    """The whole stress of each local cell, (cells, 3, 3): 2G dev ε(u) + p I (the displacement
-    formulation: p = K div u), plus the solid's initial stress at its time (p at the cell's
-    centre: the mean of its nodes' values)."""
-    space = fem.TensorFunctionSpace(solid.mesh, ("DG", 0))
-    pressure = solid.p if solid.mixed else solid.K * ufl.div(solid.u)
-    stress = forms.deviatoric_stress(solid.u, solid.G) + pressure * ufl.Identity(3)
-    if solid.initial_stress is not None:
-        solid.update_initial_stress()
-        stress = stress + solid.initial_stress
-    field = fem.Function(space)
-    field.interpolate(fem.Expression(stress, space.element.interpolation_points()))
-    return field.x.array.reshape(-1, 3, 3)[space.dofmap.list.array]
+class SectionGauge:
+    """Reads N(θ) and M(θ) of the cells of ``group`` of ``solid`` around ``ring`` (module
+    docstring), the geometry and the stress expression set up once; :meth:`forces` is
+    collective (every rank's owned cells enter every cut). A cut at θ takes side A as the cells
+    within ``SIDE`` before θ and side B within ``SIDE`` after it, so it works anywhere on a
+    whole ring or on the part of one a model of symmetry holds."""
+
+    SIDE = np.radians(30.0)
+
+    def __init__(self, solid, group: str, ring: Ring):
+        self.solid, self.group, self.ring = solid, group, ring
+        owned = solid.tagged_mesh.cells(group)
+        self.cells = owned[owned < solid.mesh.topology.index_map(3).size_local]
+        cell_nodes = solid.Q.dofmap.list.array.reshape(-1, 4)[self.cells]
+        x = solid.node_coordinates[cell_nodes]                              # (cells, 4, 3)
+        edges = x[:, 1:] - x[:, :1]
+        self.volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
+        self.gradients = np.empty_like(x)                                   # ∇N_a of each cell
+        self.gradients[:, 1:] = np.linalg.inv(np.transpose(edges, (0, 2, 1)))
+        self.gradients[:, 0] = -self.gradients[:, 1:].sum(axis=1)
+        axis, up, side = ring.frame()
+        offset = x.mean(axis=1) - np.asarray(ring.centre, float)
+        parts = solid.comm.allgather((solid.global_node_index[cell_nodes], np.arctan2(offset @ side, offset @ up), x))
+        self.nodes, self.angle, self.x = (np.concatenate(part) for part in zip(*parts, strict=True))
+        self.length = float(np.ptp(self.x.reshape(-1, 3) @ axis))
+        space = fem.TensorFunctionSpace(solid.mesh, ("DG", 0))
+        pressure = solid.p if solid.mixed else solid.K * ufl.div(solid.u)
+        stress = forms.deviatoric_stress(solid.u, solid.G) + pressure * ufl.Identity(3)
+        if solid.initial_stress is not None:
+            stress = stress + solid.initial_stress
+        self._stress = fem.Function(space)
+        self._expression = fem.Expression(stress, space.element.interpolation_points())
+        self._blocks = space.dofmap.list.array[self.cells]
+
+    def cell_stresses(self) -> np.ndarray:
+        """The whole stress of this rank's cells of the ring (cells, 3, 3): 2G dev ε(u) + p I (the
+        displacement formulation: p = K div u) plus the initial stress at the solid's time (p at
+        the cell's centre: the mean of its nodes' values)."""
+        if self.solid.initial_stress is not None:
+            self.solid.update_initial_stress()
+        self._stress.interpolate(self._expression)
+        return self._stress.x.array.reshape(-1, 3, 3)[self._blocks]
+
+    def angles_deg(self, spacing_deg: float) -> np.ndarray:
+        """Cut angles every ``spacing_deg`` from ``spacing_deg / 2``, where the ring has cells on
+        both sides within ``SIDE`` (all around a whole ring; inside a part of one)."""
+        candidates = np.arange(0.5 * spacing_deg, 360.0, spacing_deg)
+        wrapped = np.degrees(np.angle(np.exp(1j * np.radians(candidates))))
+        return np.sort([a for a in wrapped if len(self._shared(np.radians(a)))])
+
+    def _sides(self, target):
+        delta = np.angle(np.exp(1j * (self.angle - target)))
+        return (delta < 0) & (delta >= -self.SIDE), (delta >= 0) & (delta < self.SIDE)
+
+    def _shared(self, target):
+        before, after = self._sides(target)
+        return np.intersect1d(self.nodes[before], self.nodes[after])
+
+    def forces(self, angles_deg) -> SectionForces:
+        """N and M at ``angles_deg`` from the crown."""
+        nodal = self.volume[:, None, None] * np.einsum("cij,caj->cai", self.cell_stresses(), self.gradients)
+        nodal = np.concatenate(self.solid.comm.allgather(nodal))
+        axis, up, side = self.ring.frame()
+        centre = np.asarray(self.ring.centre, float)
+        mid = 0.5 * (self.ring.inner_radius + self.ring.outer_radius)
+        thrust, moment = [], []
+        for target in np.radians(np.asarray(angles_deg, float)):
+            shared = self._shared(target)
+            if len(shared) == 0:
+                raise ValueError(f"lining '{self.group}': no cut at {np.degrees(target):.1f}° "
+                                 "(it lies outside the ring's cells)")
+            on_cut = np.isin(self.nodes, shared) & self._sides(target)[1][:, None]
+            force = -nodal[on_cut]                                          # B's cells on the shared nodes
+            tangent = np.cos(target) * side - np.sin(target) * up
+            point = centre + mid * (np.sin(target) * side + np.cos(target) * up)
+            arm = self.x[on_cut] - point
+            arm -= np.outer(arm @ axis, axis)                               # in the section plane
+            thrust.append(-force.sum(axis=0) @ tangent / self.length)
+            moment.append(-np.cross(arm, force).sum(axis=0) @ axis / self.length)
+        return SectionForces(np.asarray(angles_deg, float), np.array(thrust), np.array(moment))
 
 
 def section_forces(solid, group: str, ring: Ring, angles_deg) -> SectionForces:
-    """N(θ) and M(θ) of the cells of ``group`` at ``angles_deg`` (module docstring); collective
-    (every rank's owned cells enter every cut)."""
+    """N(θ) and M(θ) of the cells of ``group`` at ``angles_deg`` once (:class:`SectionGauge`)."""
+    return SectionGauge(solid, group, ring).forces(angles_deg)
+
+
+def ring_of_cells(solid, group: str, centre, axis, up) -> Ring:
+    """The :class:`Ring` of the cells of ``group`` about the line through ``centre`` along
+    ``axis``: its inner and outer radii the nodes' least and greatest distances from the line
+    (collective)."""
     owned = solid.tagged_mesh.cells(group)
-    owned = owned[owned < solid.mesh.topology.index_map(3).size_local]
-    cell_nodes = solid.Q.dofmap.list.array.reshape(-1, 4)[owned]
-    x = solid.node_coordinates[cell_nodes]                                  # (cells, 4, 3)
-    edges = x[:, 1:] - x[:, :1]
-    volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
-    gradients = np.empty_like(x)                                            # ∇N_a of each cell
-    gradients[:, 1:] = np.linalg.inv(np.transpose(edges, (0, 2, 1)))
-    gradients[:, 0] = -gradients[:, 1:].sum(axis=1)
-    nodal = volume[:, None, None] * np.einsum("cij,caj->cai", cell_stresses(solid)[owned], gradients)
-    axis, up, side = ring.frame()
-    centre = np.asarray(ring.centre, float)
-    offset = x.mean(axis=1) - centre
-    angle = np.arctan2(offset @ side, offset @ up)
-    parts = solid.comm.allgather((solid.global_node_index[cell_nodes], nodal, angle, x))
-    nodes, nodal, angle, x = (np.concatenate(p) for p in zip(*parts, strict=True))
-    along = x.reshape(-1, 3) @ axis
-    length = np.ptp(along)
-    mid = 0.5 * (ring.inner_radius + ring.outer_radius)
-    thrust, moment = [], []
-    for target in np.radians(np.asarray(angles_deg, float)):
-        before = angle < target
-        shared = np.intersect1d(nodes[before], nodes[~before])
-        if len(shared) == 0:
-            raise ValueError(f"lining '{group}': no cut at {np.degrees(target):.1f}° "
-                             "(it lies outside the ring's cells)")
-        on_cut = np.isin(nodes, shared) & ~before[:, None]
-        force = -nodal[on_cut]                                              # B's cells on the shared nodes
-        tangent = np.cos(target) * side - np.sin(target) * up
-        point = centre + mid * (np.sin(target) * side + np.cos(target) * up)
-        arm = x[on_cut] - point
-        arm -= np.outer(arm @ axis, axis)                                   # in the section plane
-        thrust.append(-force.sum(axis=0) @ tangent / length)
-        moment.append(-np.cross(arm, force).sum(axis=0) @ axis / length)
-    return SectionForces(np.asarray(angles_deg, float), np.array(thrust), np.array(moment))
+    nodes = np.unique(solid.Q.dofmap.list.array.reshape(-1, 4)[owned])
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    offset = solid.node_coordinates[nodes] - np.asarray(centre, float)
+    distance = np.linalg.norm(offset - np.outer(offset @ a, a), axis=1)
+    inner = solid.comm.allreduce(float(distance.min(initial=np.inf)), op=MPI.MIN)
+    outer = solid.comm.allreduce(float(distance.max(initial=0.0)), op=MPI.MAX)
+    return Ring(tuple(centre), tuple(axis), tuple(up), inner, outer)
 
 
 @dataclass(frozen=True)

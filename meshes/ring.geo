@@ -30,7 +30,7 @@ drop() -= keep();
 Recursive Delete { Surface{drop()}; }
 section() = Surface{:};
 Field[1] = MathEval;
-Field[1].F = Sprintf("%g + (%g - %g) * Min(1, Max(0, Sqrt(x^2 + y^2) - %g) / %g)", h, h_far, h, Ro, L / 2 + 1e-9);
+Field[1].F = Sprintf("%g + (%g - %g) * Min(1, Max(0, Sqrt(x^2 + z^2) - %g) / %g)", h, h_far, h, Ro, L / 2 + 1e-9);  // after the rotation: the section in x-z
 Background Field = 1;
 Mesh.MeshSizeMin = 0.5 * h;
 Rotate {{1, 0, 0}, {0, 0, 0}, Pi / 2} { Surface{section()}; }

@@ -3,8 +3,8 @@
 // z = Hg (the ground surface), W wide; the opening of outer diameter D (the lining's outside)
 // with its crown at cover C below the surface; the lining, thickness t, inside it; the DEM
 // zone a ring of thickness a around the lining (cut by the ground surface when a > C); FE soil
-// beyond. The section is meshed with triangles, h near the tunnel growing to h_far, and
-// extruded along y in layers (Ly thick in all).
+// beyond. The section is meshed with triangles, h in the lining and the ring growing to h_far
+// `grow` beyond it, and extruded along y in layers h_y thick (Ly in all).
 // Physical names: volumes "lining", "zone", "soil"; surfaces "ground" (z = Hg), "base"
 // (z = 0), "far" (x = W), "axis" (x = 0), "sides" (y = 0 and y = Ly), "intrados" (the
 // lining's inside face). The zone's faces shared with the lining and the soil are the
@@ -15,6 +15,7 @@ DefineConstant[ D = {0.1, Name "Parameters/D"}, C = {0.1, Name "Parameters/C"},
                 W = {0.4, Name "Parameters/W"}, below = {0.2, Name "Parameters/below"},
                 Ly = {0.01, Name "Parameters/Ly"}, h = {0.005, Name "Parameters/h"},
                 h_far = {0.02, Name "Parameters/h_far"}, grow = {0.1, Name "Parameters/grow"} ];
+DefineConstant[ h_y = {h, Name "Parameters/h_y"} ];   // the layers' thickness along y
 Hg = below + D + C;          // the ground surface
 zc = below + D / 2;          // the tunnel's axis
 Rectangle(1) = {0, 0, 0, W, Hg};
@@ -32,11 +33,11 @@ drop() += opening();
 Recursive Delete { Surface{drop()}; }
 section() = Surface{:};
 Field[1] = MathEval;     // h within the ring (the lining and the zone), growing beyond it
-Field[1].F = Sprintf("%g + (%g - %g) * Min(1, Max(0, Sqrt(x^2 + (y - %g)^2) - %g) / %g)", h, h_far, h, zc, D / 2 + a, grow);
+Field[1].F = Sprintf("%g + (%g - %g) * Min(1, Max(0, Sqrt(x^2 + (z - %g)^2) - %g) / %g)", h, h_far, h, zc, D / 2 + a, grow);  // meshed after the rotation: x-z
 Background Field = 1;
 Mesh.MeshSizeMin = 0.5 * h;
 Rotate {{1, 0, 0}, {0, 0, 0}, Pi / 2} { Surface{section()}; }
-Extrude {0, Ly, 0} { Surface{section()}; Layers{ Ceil(Ly / h) }; }
+Extrude {0, Ly, 0} { Surface{section()}; Layers{ Ceil(Ly / h_y) }; }
 // volumes, by their extents: the lining and zone rings are recognised by their bounding boxes
 ring_lining() = Volume In BoundingBox{-eps, -eps, zc - D / 2 - eps, D / 2 + eps, Ly + eps, zc + D / 2 + eps};
 ring_zone() = Volume In BoundingBox{-eps, -eps, zc - D / 2 - a - eps, D / 2 + a + eps, Ly + eps, Min(Hg, zc + D / 2 + a) + eps};

@@ -47,7 +47,7 @@ LINING = dict(E=30e9, nu=0.2)        # concrete: F* ≈ 18, C* ≈ 0.017
 P = 1e5
 
 
-def lined_tunnel(L, h, steps, K, static=False):
+def lined_tunnel(L, h, steps, K, static=False, formulation="mixed"):
     """The quarter model at rest (or solved statically); its section forces at 5° to 85° from the crown."""
     tagged = load_geo("ring", max(h, 0.05), MPI.COMM_SELF, {"Ri": RI, "Ro": RO, "L": L, "h": h, "h_far": 0.05,
                                                             "Ly": h})
@@ -63,7 +63,7 @@ def lined_tunnel(L, h, steps, K, static=False):
                Traction("far_z", stress[:, 2].tolist(), amplitude)]
     solid = ExplicitSolid(tagged, {"ring": lining, "ground": ground}, boundary_conditions=supports,
                           loads=in_situ, damping=LocalNonViscousDamping(0.7),
-                          formulation="displacement" if static else "mixed")
+                          formulation="displacement" if static else formulation)
     t0 = time.perf_counter()
     if static:
         solve_static(solid)
@@ -82,8 +82,10 @@ def main():
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--K", type=float, default=0.5, help="σ_h / σ_v of the in-situ stress")
     parser.add_argument("--static", action="store_true", help="a static solve instead of the explicit run")
+    parser.add_argument("--formulation", choices=("mixed", "displacement"), default="mixed",
+                        help="of the explicit run")
     args = parser.parse_args()
-    forces, cells, seconds = lined_tunnel(args.L, args.h, args.steps, args.K, args.static)
+    forces, cells, seconds = lined_tunnel(args.L, args.h, args.steps, args.K, args.static, args.formulation)
     tunnel = LinedTunnel(0.5 * (RI + RO), RO - RI, GROUND["E"], GROUND["nu"], LINING["E"], LINING["nu"], P, args.K)
     thrust, moment, c, f = einstein_schwartz(tunnel, forces.angle_deg)
     how = "a static solve" if args.static else f"{args.steps} steps"

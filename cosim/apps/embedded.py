@@ -42,6 +42,7 @@ from cosim.outputs import (
     ProgressLine,
     PvdCollection,
     atomic_write_npz,
+    atomic_write_text,
     compilation_seconds,
     is_root,
     mpi_comm,
@@ -71,6 +72,17 @@ class Roles:
         grains = [v.group for v in em.volumes if v.role == "zone" or (v.role == "soil" and em.model == "dem")]
         fe = {v.group: v for v in em.volumes if v.group not in grains}
         return cls(grains, fe, {s.group: s for s in em.surfaces}, list(em.rigid))
+
+
+class LoadingRamp:
+    """A load's amplitude that is 0 until the loading starts, then rises linearly to 1 over the
+    loading: ``start`` is set when the loading starts (or from the checkpoint on resume)."""
+
+    def __init__(self, duration):
+        self.duration, self.start = duration, None
+
+    def __call__(self, t):
+        return 0.0 if self.start is None else min(max((t - self.start) / self.duration, 0.0), 1.0)
 
 
 def mesh_file(case, case_path):
@@ -275,7 +287,7 @@ def fill(case, built, out_dir, name):
 
 
 # --------------------------------------------------------------------------- model
-def build_model(case, built, positions, radii):
+def build_model(case, built, positions, radii, ramp):
     """The DEM engine (grains; facets: rigid bodies first, then the DEM walls that are no plane,
     the interface last; plane walls for the DEM walls that are (:func:`planar_walls`)) and the
     FE volumes with the interface; collective. Returns (soil_model.Model, rigid FacetMeshes)."""
@@ -308,7 +320,7 @@ def build_model(case, built, positions, radii):
         return Model(engine), bodies
     sand = mats[ids[em.sand_material]]
     bulk = sand.density * float(np.sum(4.0 / 3.0 * np.pi * radii**3)) / tets_volume(split.zone.tets)
-    solid = build_fe(case, split, roles, bulk)
+    solid = build_fe(case, split, roles, bulk, ramp)
     check_replicas(solid)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
     engine = Engine(particles, mats, walls=planes, facets=bodies + walls + [interface.facets], **engine_args)
@@ -386,7 +398,7 @@ def seat(model, bodies, rigid, interval, loading_time, name):
     return out
 
 
-def resumed_model(case, case_path, out_dir, built, state):
+def resumed_model(case, case_path, out_dir, built, state, ramp):
     """The model at the last checkpoint of the loading (DEM engine with its rigid bodies, walls
     and interface facets; the FE volumes on the prepared mesh with their state); collective.
     Returns (soil_model.Model, rigid FacetMeshes)."""
@@ -398,17 +410,19 @@ def resumed_model(case, case_path, out_dir, built, state):
     if split.fe is None:
         return Model(engine), bodies
     _, ids = _materials(case)
-    solid = build_fe(case, split, Roles.of(em), state["soil_density"])
+    solid = build_fe(case, split, Roles.of(em), state["soil_density"], ramp)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
     restore_fe(solid, interface, engine, case_path, out_dir)
     return Model(engine, solid, interface, int(round(solid.dt / engine.dt)),
                  state["soil_density"]), bodies
 
 
-def build_fe(case, split, roles, bulk_density):
+def build_fe(case, split, roles, bulk_density, ramp=None):
     """The FE volumes on the split mesh: a material per volume (soil without ρ: the packing's
     bulk density), supports from the surfaces' ``fe`` roles, gravity, the geostatic stress of
-    the soil volumes given K0 (:func:`geostatic_loads`), local damping."""
+    the soil volumes given K0 (:func:`geostatic_loads`), the linings' contraction over the
+    loading (amplitude ``ramp``, :class:`LoadingRamp`), local damping."""
+    from fe_domain.boundary import Contraction
     from fe_domain.build import build_solid
     from fe_domain.explicit import stable_alpha_tau
     materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density} for g, v in roles.fe.items()}
@@ -421,9 +435,12 @@ def build_fe(case, split, roles, bulk_density):
     nu = max(v.nu for v in roles.fe.values())
     gravity = {"type": "body_force", "acceleration": list(case.dem.gravity)}
     return build_solid(split.fe, material=materials, boundary_conditions=supports,
-                       loads=[gravity, *geostatic_loads(case, split, roles)],
+                       loads=[gravity, *geostatic_loads(case, split, roles),
+                              *[Contraction(0.5 * lining.volume_loss, lining.axis, (lining.volume,), ramp)
+                                for lining in case.embedded.linings if lining.volume_loss > 0]],
                        damping={"type": "local", "alpha": case.embedded.damping} if case.embedded.damping else None,
-                       formulation="mixed", alpha_tau=stable_alpha_tau(nu), safety_factor=case.time.safety_factor)
+                       formulation=case.embedded.formulation, alpha_tau=stable_alpha_tau(nu),
+                       safety_factor=case.time.safety_factor)
 
 
 def geostatic_loads(case, split, roles):
@@ -447,11 +464,32 @@ def geostatic_loads(case, split, roles):
 
 
 # --------------------------------------------------------------------------- loading
-def columns(rigid):
-    """series.csv columns: per rigid body its motion, force and moment, then the interface force."""
+#: where series.csv reads each lining's thrust and moment: degrees from the crown
+LINING_GAUGES = {"crown": 5.0, "springline": 90.0, "invert": 175.0}
+LINING_SPACING = 5.0  # degrees between the cuts of <volume>_sections.csv
+
+
+def lining_gauges(case, model):
+    """A :class:`fe_domain.lining.SectionGauge` per lining (its ring found from its cells, θ from
+    the crown, up = −g); collective."""
+    from fe_domain.lining import SectionGauge, ring_of_cells
+    up = -np.asarray(case.dem.gravity, float)
+    gauges = []
+    for lining in case.embedded.linings:
+        ring = ring_of_cells(model.solid, lining.volume, lining.centre, lining.axis, up)
+        gauges.append(SectionGauge(model.solid, lining.volume, ring))
+    return gauges
+
+
+def columns(rigid, linings=()):
+    """series.csv columns: per rigid body its motion, force and moment; per lining its thrust and
+    moment at the crown, springline and invert (:data:`LINING_GAUGES`); the interface force."""
     per_body = [f"{r.name}_{q}" for r in rigid for q in
                 ("displacement", "rotation", *(f"force_{a}" for a in AXES), *(f"moment_{a}" for a in AXES))]
-    return ["time", *per_body, *(f"interface_force_{a}" for a in AXES), "unbalanced_force_ratio", "step"]
+    per_lining = [f"{lining.volume}_{q}_{where}" for lining in linings for q in ("thrust", "moment")
+                  for where in LINING_GAUGES]
+    return ["time", *per_body, *per_lining, *(f"interface_force_{a}" for a in AXES), "unbalanced_force_ratio",
+            "step"]
 
 
 def rotation_matrix(axis_angle):
@@ -474,11 +512,12 @@ def place_body(mesh, reference, body, elapsed):
     mesh.set_vertex_state(positions, velocity + np.cross(omega, positions - centre))
 
 
-def load(case, model, bodies, rigid, references, out_dir, name, state, resume=False):
+def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, resume=False):
     """Hold the rigid bodies for one row (row 0: the forces at rest), then move them (from their
-    ``references`` vertices) for embedded.loading_time; series.csv; a checkpoint every
-    output.checkpoint_interval (after a row), from which ``resume`` continues; returns the
-    series (rank 0)."""
+    ``references`` vertices) and contract the linings (``ramp`` starts) for
+    embedded.loading_time; series.csv, and each lining's section forces at rest and at the end
+    (<volume>_sections.csv); a checkpoint every output.checkpoint_interval (after a row), from
+    which ``resume`` continues; returns the series (rank 0)."""
     from cosim.apps import coupled as coupled_app
     from cosim.lab.shear_report import read_series
     from cosim.soil_model import save_checkpoint, unbalanced
@@ -486,15 +525,17 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, resume=Fa
     from fe_domain.output import FieldWriter
     em = case.embedded
     row_time = em.loading_time / em.rows
+    gauges = lining_gauges(case, model) if em.linings else []
     if resume:
         first_row, start = state["row"] + 1, state["loading_start_time"]
+        ramp.start = start
     else:
         first_row, start = 0, None  # row 0: the bodies held, the thrust at rest; they move from its end
         for mesh in bodies:
             mesh.reset_impulse()
         model.take_interface_impulse()  # the rest phase's is not the loading's
     resume_time = model.time if resume else None
-    rows = CsvSeries(out_dir / "series.csv", columns(rigid), resume_time) if is_root() else None
+    rows = CsvSeries(out_dir / "series.csv", columns(rigid, em.linings), resume_time) if is_root() else None
     frames = PvdCollection(out_dir / "particles.pvd", resume_time) if is_root() and case.output.vtk else None
     fields = None
     if model.solid is not None and coupled_app.writes_fe_files(model.solid):
@@ -512,7 +553,8 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, resume=Fa
         model.advance(row_time)
         elapsed, t_last = model.time - t_last, model.time
         if k == 0:
-            start = state["loading_start_time"] = model.time
+            start = ramp.start = state["loading_start_time"] = model.time
+            state["sections_at_rest"] = [sections(gauge) for gauge in gauges]
         row = [model.time]
         for mesh, body in zip(bodies, rigid, strict=True):
             t = model.time - start
@@ -522,6 +564,9 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, resume=Fa
             mesh.reset_impulse()
             row += [float(np.linalg.norm(body.velocity)) * t, float(np.linalg.norm(body.angular_velocity)) * t,
                     *force, *moment]
+        for gauge in gauges:
+            forces = gauge.forces(list(LINING_GAUGES.values()))
+            row += [*forces.thrust, *forces.moment]
         row += [*(model.take_interface_impulse() / elapsed), unbalanced(model), model.engine.step_count]
         if rows is not None:
             rows.append(row)
@@ -539,6 +584,8 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, resume=Fa
                                              "loading_before_s": state["loading_before_s"] + now - t_entry}, STATE)
             last_checkpoint = now
     progress.update(em.rows, model.time, force=True)
+    for lining, gauge, at_rest in zip(em.linings, gauges, state.get("sections_at_rest", []), strict=True):
+        write_sections(out_dir / f"{lining.volume}_sections.csv", at_rest, sections(gauge))
     state["loading_before_s"] += time.perf_counter() - t_entry
     for mesh in bodies:
         mesh.velocity = np.zeros(3)
@@ -548,6 +595,23 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, resume=Fa
         return None
     rows.close()
     return read_series(out_dir / "series.csv")
+
+
+def sections(gauge):
+    """{angle_deg, thrust, moment} lists of a lining every LINING_SPACING degrees; collective."""
+    forces = gauge.forces(gauge.angles_deg(LINING_SPACING))
+    return {"angle_deg": forces.angle_deg.tolist(), "thrust": forces.thrust.tolist(), "moment": forces.moment.tolist()}
+
+
+def write_sections(path, at_rest, end):
+    """<volume>_sections.csv (rank 0): per cut angle from the crown the thrust (N/m, compression +)
+    and moment (N·m/m, intrados in tension +) at rest and at the end of the loading."""
+    if not is_root():
+        return
+    header = "angle_deg,thrust_at_rest,moment_at_rest,thrust_end,moment_end\n"
+    lines = [f"{a:.6g},{n0:.9g},{m0:.9g},{n1:.9g},{m1:.9g}" for a, n0, m0, n1, m1 in
+             zip(end["angle_deg"], at_rest["thrust"], at_rest["moment"], end["thrust"], end["moment"], strict=True)]
+    atomic_write_text(path, header + "\n".join(lines) + "\n")
 
 
 # --------------------------------------------------------------------------- run
@@ -597,9 +661,10 @@ def simulate(prepared):
     compiling_before = compilation_seconds()
     _, ids = _materials(case)
     unmoved = [b.vertices.copy() for b in rigid_bodies(case, prepared.built["split"], ids)]
+    ramp = LoadingRamp(em.loading_time)  # the linings' contraction: from the loading's start
     if prepared.resume:
         state = json.loads((out_dir / STATE).read_text())
-        model, bodies = resumed_model(case, prepared.case_path, out_dir, prepared.built, state)
+        model, bodies = resumed_model(case, prepared.case_path, out_dir, prepared.built, state, ramp)
         say(f"[{name}] resumed the loading at row {state['row']} (t = {model.time:.4e} s)")
     else:
         clock = {}
@@ -607,7 +672,7 @@ def simulate(prepared):
         positions, radii, fill_info = fill(case, prepared.built, out_dir, name)
         clock["fill_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        model, bodies = build_model(case, prepared.built, positions, radii)
+        model, bodies = build_model(case, prepared.built, positions, radii, ramp)
         clock["build_s"] = time.perf_counter() - t0
         say(f"[{name}] {len(radii)} grains, DEM dt = {model.engine.dt:.3e} s"
             + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
@@ -633,7 +698,7 @@ def simulate(prepared):
     references = [reference + np.asarray(offset) for reference, offset in zip(unmoved, state["offsets"], strict=True)]
     state["compilation_before_s"] += compilation_seconds() - compiling_before
     compiling_before = compilation_seconds()
-    series = load(case, model, bodies, rigid, references, out_dir, name, state, prepared.resume)
+    series = load(case, model, bodies, rigid, references, out_dir, name, state, ramp, prepared.resume)
     grains = model.engine.global_particles()  # collective
     fe_end = fe_nodes(model.solid) if model.solid is not None else None  # collective
     compiling = state["compilation_before_s"] + compilation_seconds() - compiling_before

@@ -32,13 +32,14 @@ def summary_of(prepared, outcome):
 
 
 def report(prepared, outcome):
-    """summary.json, load_displacement.png, displacement_section.png and, when both models of the
-    case have run, their comparison (rank 0)."""
+    """summary.json, load_displacement.png (with rigid bodies), displacement_section.png and, when
+    both models of the case have run, their comparison (rank 0)."""
     case = prepared.case
     summary = summary_of(prepared, outcome)
     atomic_write_text(outcome.out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
-    plot_rigid_forces({case.embedded.model: outcome.series}, outcome.rigid, outcome.out_dir / "load_displacement.png",
-                      case.case.name)
+    if outcome.rigid:
+        plot_rigid_forces({case.embedded.model: outcome.series}, outcome.rigid,
+                          outcome.out_dir / "load_displacement.png", case.case.name)
     plot_section(outcome, prepared.built["split"], outcome.out_dir / "displacement_section.png",
                  f"{case.case.name} ({case.embedded.model})")
     compare_models(Path(prepared.out_dir), outcome.rigid, case.case.name)
@@ -156,8 +157,9 @@ def compare_models(case_dir, rigid, title):
             c, d = (float(np.mean(curves[m][f"{body.name}_{q}"])) for m in ("coupled", "dem"))
             lines.append(f"{body.name}_{q},{c:.6g},{d:.6g},{(c - d) / d if d else float('nan'):.4f}")
     atomic_write_text(case_dir / "comparison.csv", "\n".join(lines) + "\n")
-    plot_rigid_forces({"coupled": curves["coupled"], "all-DEM": curves["dem"]}, rigid, case_dir / "comparison.png",
-                      f"{title}: coupled against all-DEM")
+    if rigid:
+        plot_rigid_forces({"coupled": curves["coupled"], "all-DEM": curves["dem"]}, rigid, case_dir / "comparison.png",
+                          f"{title}: coupled against all-DEM")
     say(f"[{title}] coupled against all-DEM (mean over the loading): {case_dir / 'comparison.csv'}\n  "
         + "\n  ".join(lines[1:]))
     return lines

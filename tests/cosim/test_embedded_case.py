@@ -82,3 +82,30 @@ def test_fe_soil_given_k0_starts_at_rest(coupled, coupled_k0):
     assert summary["rest"]["support_force_over_weight"] == pytest.approx(1.0, abs=0.01)
     settled, given = (np.load(out / "loading_start.npz")["fe_displacement"] for out in (coupled, coupled_k0))
     assert np.abs(given[:, 2]).max() < 0.2 * np.abs(settled[:, 2]).max()
+
+
+def test_a_lining_contracts_from_the_loadings_start():
+    """The linings' contraction amplitude (embedded.LoadingRamp): 0 until the loading starts, then
+    linear to 1 over the loading, and held."""
+    from cosim.apps.embedded import LoadingRamp
+    ramp = LoadingRamp(0.5)
+    assert ramp(10.0) == 0.0                       # the loading has not started
+    ramp.start = 2.0
+    assert [ramp(t) for t in (1.0, 2.0, 2.25, 2.5, 9.0)] == [0.0, 0.0, 0.5, 1.0, 1.0]
+
+
+@pytest.mark.slow  # about 8 minutes: the closed ring of grains takes 400,000 steps to come to rest
+def test_a_tunnel_lining_reports_its_section_forces_and_contracts(tmp_path):
+    """runs/tunnel_small.toml, 0.05 s of loading: the lining carries the ground (thrust > 0 all
+    round at rest), its section forces are written every 5° from the crown, and its contraction
+    (V_L = 1 %) unloads it (less thrust at the end at every cut)."""
+    sets = ["embedded.rows=10", "embedded.loading_time=0.05", "output.progress_interval=1000.0"]
+    args = [a for s in sets for a in ("--set", s)]
+    assert main(["run", "runs/tunnel_small.toml", *args, "--out", str(tmp_path)]) == 0
+    sections = np.genfromtxt(tmp_path / "coupled" / "lining_sections.csv", delimiter=",", names=True)
+    assert np.allclose(np.diff(sections["angle_deg"]), 5.0) and sections["angle_deg"][0] == 2.5
+    assert np.all(sections["thrust_at_rest"] > 0.0)
+    assert np.all(sections["thrust_end"] < sections["thrust_at_rest"])
+    series = read_series(tmp_path / "coupled" / "series.csv")
+    for where in ("crown", "springline", "invert"):
+        assert f"lining_thrust_{where}" in series and f"lining_moment_{where}" in series
