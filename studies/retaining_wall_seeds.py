@@ -194,7 +194,7 @@ def plot(curves, variant):
     ax.axvline(1e3 * ACTIVE_FROM * variant.height, color="0.8", lw=0.8, zorder=0)
     ax.set_xlabel("wall top's displacement away from the backfill [mm]")
     ax.set_ylabel("horizontal thrust on the wall F_x [N]")
-    ax.set_title(f"retaining wall, {variant.title}: one line per packing", fontsize=10)
+    ax.set_title(f"retaining wall, {variant.title}\none line per packing", fontsize=10)
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
