@@ -511,6 +511,10 @@ class EmbeddedSection(_Section):
     surfaces: list[EmbeddedSurface] = Field(
         default_factory=list, description="[[embedded.surfaces]]: supports of the FE and walls of the DEM")
     rigid: list[RigidBody] = Field(default_factory=list, description="[[embedded.rigid]]: rigid bodies that move")
+    ground: Optional[str] = Field(
+        default=None,
+        description="a surface group of the model that is the ground surface: its settlement during the loading "
+                    "(its FE nodes, and the grains of the zone's top layer under it) in settlement_trough.csv")
     linings: list[EmbeddedLining] = Field(
         default_factory=list,
         description="[[embedded.linings]]: structure volumes that are tunnel linings: their thrust and bending moment "

@@ -121,7 +121,8 @@ def prepare(case, case_path, out_dir, resume):
         raise CaseError(case_path, "embedded.mesh", em.mesh,
                         f"the model could not be meshed and split: {exc}") from None
     for key, group in ([(f"embedded.surfaces[{i}].group", s.group) for i, s in enumerate(em.surfaces)]
-                       + [(f"embedded.rigid[{i}].surface", r.surface) for i, r in enumerate(em.rigid)]):
+                       + [(f"embedded.rigid[{i}].surface", r.surface) for i, r in enumerate(em.rigid)]
+                       + ([("embedded.ground", em.ground)] if em.ground else [])):
         if split.groups.get(group) != 2:
             raise CaseError(case_path, key, group, str(GroupError(group, 2, split.groups)))
     for i, s in enumerate(em.surfaces):

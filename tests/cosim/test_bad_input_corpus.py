@@ -307,6 +307,8 @@ CORPUS = [
                                                  "seating_pressure = 100.0\nvelocity = [0.0, 0.0, 0.0]"),),
         label="a body placed on the grains without a velocity"),
     Bad("embedded", "a zone is made of grains", sets=["embedded.volumes[0].K0=0.5"], label="K0 given for a zone"),
+    Bad("embedded", "no physical surface 'roof'", sets=['embedded.ground="roof"'],
+        label="a ground surface not in the model"),
     Bad("embedded", "greater than 0", sets=["embedded.volumes[1].K0=-0.5"], label="a negative K0"),
     # ---------------------------------------------------------------- footing (docs/design.md §7)
     Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),

@@ -98,8 +98,8 @@ def test_a_tunnel_lining_reports_its_section_forces_and_contracts(tmp_path):
     """runs/tunnel_small.toml (a closed ring of 1,329 grains around the lining, FE soil with
     K0 = 0.5), 0.03 s of loading: the supports carry the grains' weight within 1 %, the lining
     carries the ground (thrust > 0 all round at rest), its section forces are written every 5°
-    from the crown, and its contraction (V_L = 1 %) unloads it (less thrust at the end at
-    every cut)."""
+    from the crown, its contraction (V_L = 1 %) unloads it (less thrust at the end at every
+    cut), and the ground surface's settlement is written across the model."""
     sets = ["embedded.rows=6", "embedded.loading_time=0.03", "output.progress_interval=1000.0"]
     args = [a for s in sets for a in ("--set", s)]
     assert main(["run", "runs/tunnel_small.toml", *args, "--out", str(tmp_path)]) == 0
@@ -112,3 +112,7 @@ def test_a_tunnel_lining_reports_its_section_forces_and_contracts(tmp_path):
     series = read_series(tmp_path / "coupled" / "series.csv")
     for where in ("crown", "springline", "invert"):
         assert f"lining_thrust_{where}" in series and f"lining_moment_{where}" in series
+    trough = np.genfromtxt(tmp_path / "coupled" / "settlement_trough.csv", delimiter=",", names=True, dtype=None,
+                           encoding=None)   # the ground's FE nodes (the ring is buried: no grains under it)
+    assert set(trough["source"]) == {"fe"} and np.all(np.isfinite(trough["settlement"]))
+    assert trough["x"].min() == pytest.approx(0.0, abs=1e-12) and trough["x"].max() == pytest.approx(0.15, rel=1e-9)
