@@ -245,6 +245,8 @@ class ExplicitSolid:
         face_area = np.stack([0.5 * np.linalg.norm(np.cross(x[:, b] - x[:, a], x[:, c] - x[:, a]), axis=1)
                               for a, b, c in faces], axis=1)
         self.h_cells = 3.0 * volume / face_area.max(axis=1)
+        #: volume of each local cell (m³)
+        self.cell_volumes = volume
 
     def _setup_material(self, material, alpha_tau):
         """DG0 fields G, K, ρ from one Material or a {cell group name: Material} map; τ_e."""

@@ -3,9 +3,9 @@ moment M(θ) per unit length of the tunnel.
 
 Around the ring, θ is measured in its section plane from the crown (the ``up`` direction,
 θ = 0) towards the side ``axis × up`` (θ = 90°: the springline) to the invert (180°). A cut
-at θ splits the ring's cells into those whose centres lie before θ (side A) and the rest
-(side B); the force that side B exerts on side A is the sum, over the nodes the two sides
-share, of the B cells' nodal forces, F = −Σ_{e∈B} ∫_e Bᵀσ (the element's nodal internal
+at θ takes the ring's cells whose centres lie within 30° before θ (side A) and within 30°
+after it (side B); the force that side B exerts on side A is the sum, over the nodes the two
+sides share, of the B cells' nodal forces, F = −Σ_{e∈B} ∫_e Bᵀσ (the element's nodal internal
 forces, with the whole stress σ: 2G dev ε(u) + p I plus any initial stress). Its moment is
 taken about the point of the mid-radius r_m at θ, and with t̂ the tangent (towards B) and â
 the axis
@@ -75,7 +75,7 @@ class SectionGauge:
         cell_nodes = solid.Q.dofmap.list.array.reshape(-1, 4)[self.cells]
         x = solid.node_coordinates[cell_nodes]                              # (cells, 4, 3)
         edges = x[:, 1:] - x[:, :1]
-        self.volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
+        self.volume = solid.cell_volumes[self.cells]
         self.gradients = np.empty_like(x)                                   # ∇N_a of each cell
         self.gradients[:, 1:] = np.linalg.inv(np.transpose(edges, (0, 2, 1)))
         self.gradients[:, 0] = -self.gradients[:, 1:].sum(axis=1)

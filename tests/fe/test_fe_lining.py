@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fe_domain.boundary import Contraction, Fixed, LocalNonViscousDamping, Material, NormalPressure, ramp
+from fe_domain.boundary import (
+    Contraction,
+    Fixed,
+    LocalNonViscousDamping,
+    MassProportionalDamping,
+    Material,
+    NormalPressure,
+    ramp,
+)
 from fe_domain.explicit import ExplicitSolid
 from fe_domain.lining import Ring, section_forces
 from fe_domain.mesh import load_geo
@@ -84,3 +92,27 @@ def test_lined_tunnel_against_einstein_schwartz():
     assert forces.thrust == pytest.approx(thrust, rel=0.10)
     assert np.abs(forces.moment - moment).max() < 0.10 * np.abs(moment).max()
     assert np.sign(forces.moment[0]) == np.sign(moment[0]) == 1.0   # K < 1: the crown's intrados in tension
+
+
+@pytest.mark.mpi
+def test_section_forces_and_contraction_are_the_same_on_all_ranks_and_on_one():
+    """Collective (``mpirun -n 2 pytest -m mpi``): the quarter ring split over the ranks,
+    contracting under an external pressure (both ramped), gives every rank the same thrust and
+    moment as the ring on COMM_SELF, to round-off (the sums follow the partition). Mass-
+    proportional damping: local damping's sign(v) turns round-off near rest into differences
+    of order 1e-3 (measured 0.08 % on the thrust), as it would between any two summation orders."""
+    def forces(comm):
+        tagged = load_geo("ring", 0.0025, comm, {"Ri": RI, "Ro": RO, "h": 0.0025, "Ly": 0.005})
+        material = Material(E=E, nu=NU, rho=2500.0)
+        dt = ExplicitSolid(tagged, material, boundary_conditions=SYMMETRY).dt
+        loads = [NormalPressure("outer", 1e5, ramp(500 * dt)), Contraction(0.002, (0.0, 1.0, 0.0), ("ring",),
+                                                                               ramp(500 * dt))]
+        solid = ExplicitSolid(tagged, material, boundary_conditions=SYMMETRY, loads=loads,
+                              damping=MassProportionalDamping(1e4), dt=dt)
+        solid.run(600)
+        return section_forces(solid, "ring", RING, ANGLES)
+    together, alone = forces(MPI.COMM_WORLD), forces(MPI.COMM_SELF)
+    scale = np.abs(alone.thrust).max()
+    assert np.abs(together.thrust - alone.thrust).max() < 1e-9 * scale
+    assert np.abs(together.moment - alone.moment).max() < 1e-9 * scale * (RO - RI)
+    assert np.allclose(MPI.COMM_WORLD.allgather(together.thrust), together.thrust, rtol=0, atol=0)
