@@ -499,10 +499,12 @@ class EmbeddedLining(_Section):
 
 
 class EmbeddedSection(_Section):
-    model: Literal["coupled", "dem"] = Field(
+    model: Literal["coupled", "dem", "fe"] = Field(
         default="coupled",
         description="'coupled': grains in the 'zone' volumes, FE in the 'soil' and 'structure' ones; 'dem': the "
-                    "all-DEM twin, every 'soil' volume filled with grains too")
+                    "all-DEM twin, every 'soil' volume filled with grains too; 'fe': the FE-only twin, every volume "
+                    "linear elastic (a zone takes the first 'soil' volume's E, nu, K0 and density), solved "
+                    "statically at rest and at each row of the loading")
     mesh: str = Field(description="the gmsh model (.geo or .msh), relative to the case file or in meshes/")
     mesh_size: Optional[float] = Field(default=None, gt=0, description="largest element size for a .geo [m]")
     parameters: dict[str, float] = Field(
@@ -1297,6 +1299,8 @@ def _check_embedded(path, case):
     if em.model == "coupled" and not any(v.role == "zone" for v in em.volumes):
         raise CaseError(path, "embedded.volumes", [v.group for v in em.volumes],
                         "the coupled model needs a 'zone' volume (or set embedded.model = 'dem')")
+    if em.model == "fe":
+        _check_fe_only(path, em)
     for i, s in enumerate(em.surfaces):
         if s.dem == "wall" and s.material is None:
             raise CaseError(path, f"embedded.surfaces[{i}].material", None, "a DEM wall needs a material")
@@ -1307,6 +1311,25 @@ def _check_embedded(path, case):
                             f"a lining is a 'structure' volume of [[embedded.volumes]]: one of {structures}")
         if not any(lining.axis):
             raise CaseError(path, f"embedded.linings[{i}].axis", lining.axis, "the tunnel's axis must not be zero")
+
+
+def _check_fe_only(path, em):
+    """The FE-only twin (embedded.model = 'fe') is linear elastic and solved statically: the
+    displacement formulation, the FE replicated on every rank, a 'soil' volume whose constants
+    the zones take, no rigid bodies (they act on grains)."""
+    if em.formulation != "displacement":
+        raise CaseError(path, "embedded.formulation", em.formulation,
+                        "the FE-only model (embedded.model = 'fe') is solved statically: 'displacement'")
+    if em.fe_partition != "replicated":
+        raise CaseError(path, "embedded.fe_partition", em.fe_partition,
+                        "the FE-only model is solved on each rank's whole copy: 'replicated'")
+    if em.rigid:
+        raise CaseError(path, "embedded.rigid", [r.name for r in em.rigid],
+                        "rigid bodies move grains: the FE-only model has none; remove them or run 'coupled'")
+    if not any(v.role == "soil" for v in em.volumes):
+        raise CaseError(path, "embedded.volumes", [v.group for v in em.volumes],
+                        "the FE-only model gives the zones the first 'soil' volume's E, nu, K0 and density: "
+                        "give a 'soil' volume")
 
 
 # --------------------------------------------------------------------------- calibration files (cosim calibrate)

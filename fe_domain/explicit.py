@@ -343,6 +343,12 @@ class ExplicitSolid:
         return total
 
     @property
+    def pressure_form(self):
+        """The mean stress measured from the initial stress, as a UFL expression: the mixed
+        formulation's p, the displacement formulation's K div u."""
+        return self.p if self.mixed else self.K * ufl.div(self.u)
+
+    @property
     def fixed_dofs(self) -> np.ndarray:
         """The local dof numbers (3 × node + component) held at zero velocity."""
         return self._fixed_dofs

@@ -85,8 +85,7 @@ class SectionGauge:
         self.nodes, self.angle, self.x = (np.concatenate(part) for part in zip(*parts, strict=True))
         self.length = float(np.ptp(self.x.reshape(-1, 3) @ axis))
         space = fem.TensorFunctionSpace(solid.mesh, ("DG", 0))
-        pressure = solid.p if solid.mixed else solid.K * ufl.div(solid.u)
-        stress = forms.deviatoric_stress(solid.u, solid.G) + pressure * ufl.Identity(3)
+        stress = forms.deviatoric_stress(solid.u, solid.G) + solid.pressure_form * ufl.Identity(3)
         if solid.initial_stress is not None:
             stress = stress + solid.initial_stress
         self._stress = fem.Function(space)

@@ -1,10 +1,12 @@
 """Outputs of the FE solid: XDMF fields for ParaView, energy and reaction CSV files.
 
-Fields written: displacement u, velocity v, mean stress p (P1, at nodes) and the
-von Mises stress √(3/2 s:s) of s = 2G dev ε(u) (DG0, one value per cell), plus any
-fields the caller adds (e.g. the coupling's interface traction). A solid with an initial
-(geostatic) stress σ0: u and p are measured from it; the von Mises stress is of the whole
-deviator, s + dev σ0, and ``mean_stress`` (DG0) is the whole mean stress, p + tr σ0 / 3.
+Fields written: displacement u, velocity v, the mixed formulation's mean stress p (P1, at
+nodes; zero in the displacement formulation) and the von Mises stress √(3/2 s:s) of
+s = 2G dev ε(u) (DG0, one value per cell), plus any fields the caller adds (e.g. the
+coupling's interface traction). A solid with an initial (geostatic) stress σ0: u and p are
+measured from it and the von Mises stress is of the whole deviator, s + dev σ0. With σ0 or
+in the displacement formulation, ``mean_stress`` (DG0) is the whole mean stress,
+p + tr σ0 / 3 (p = K div u in the displacement formulation).
 """
 
 from __future__ import annotations
@@ -38,9 +40,11 @@ class FieldWriter:
         points = solver.D0.element.interpolation_points()
         self.cell_fields = [(fem.Function(solver.D0, name="von_mises"),
                               fem.Expression(forms.von_mises(solver.u, solver.G, solver.initial_stress), points))]
-        if solver.initial_stress is not None:
-            self.cell_fields.append((fem.Function(solver.D0, name="mean_stress"),
-                                      fem.Expression(solver.p + ufl.tr(solver.initial_stress) / 3.0, points)))
+        if solver.initial_stress is not None or not solver.mixed:
+            mean = solver.pressure_form
+            if solver.initial_stress is not None:
+                mean = mean + ufl.tr(solver.initial_stress) / 3.0
+            self.cell_fields.append((fem.Function(solver.D0, name="mean_stress"), fem.Expression(mean, points)))
 
     def write(self) -> None:
         """Append the current state at t = solver.time."""

@@ -69,6 +69,10 @@ class Roles:
 
     @classmethod
     def of(cls, em):
+        if em.model == "fe":  # the zones are soil like the first 'soil' volume
+            soil = next(v for v in em.volumes if v.role == "soil")
+            fe = {v.group: soil.model_copy(update={"group": v.group}) if v.role == "zone" else v for v in em.volumes}
+            return cls([], fe, {s.group: s for s in em.surfaces}, [])
         grains = [v.group for v in em.volumes if v.role == "zone" or (v.role == "soil" and em.model == "dem")]
         fe = {v.group: v for v in em.volumes if v.group not in grains}
         return cls(grains, fe, {s.group: s for s in em.surfaces}, list(em.rigid))
@@ -132,6 +136,8 @@ def prepare(case, case_path, out_dir, resume):
                 raise CaseError(case_path, f"embedded.surfaces[{i}].fe", "roller",
                                 f"surface '{s.group}' is not a plane normal to x, y or z; use 'fixed'")
     built = {"split": split}
+    if em.model == "fe":
+        return built
     if case.specimen.source == "file":
         built["packing"] = mpi_comm().bcast(on_root(mpi_comm(), lambda: read_packing(case, case_path, split)), root=0)
         d_max = 2.0 * float(built["packing"][1].max())
@@ -470,15 +476,15 @@ LINING_GAUGES = {"crown": 5.0, "springline": 90.0, "invert": 175.0}
 LINING_SPACING = 5.0  # degrees between the cuts of <volume>_sections.csv
 
 
-def lining_gauges(case, model):
-    """A :class:`fe_domain.lining.SectionGauge` per lining (its ring found from its cells, θ from
-    the crown, up = −g); collective."""
+def lining_gauges(case, solid):
+    """A :class:`fe_domain.lining.SectionGauge` per lining of ``solid`` (its ring found from its
+    cells, θ from the crown, up = −g); collective."""
     from fe_domain.lining import SectionGauge, ring_of_cells
     up = -np.asarray(case.dem.gravity, float)
     gauges = []
     for lining in case.embedded.linings:
-        ring = ring_of_cells(model.solid, lining.volume, lining.centre, lining.axis, up)
-        gauges.append(SectionGauge(model.solid, lining.volume, ring))
+        ring = ring_of_cells(solid, lining.volume, lining.centre, lining.axis, up)
+        gauges.append(SectionGauge(solid, lining.volume, ring))
     return gauges
 
 
@@ -487,10 +493,14 @@ def columns(rigid, linings=()):
     moment at the crown, springline and invert (:data:`LINING_GAUGES`); the interface force."""
     per_body = [f"{r.name}_{q}" for r in rigid for q in
                 ("displacement", "rotation", *(f"force_{a}" for a in AXES), *(f"moment_{a}" for a in AXES))]
-    per_lining = [f"{lining.volume}_{q}_{where}" for lining in linings for q in ("thrust", "moment")
-                  for where in LINING_GAUGES]
-    return ["time", *per_body, *per_lining, *(f"interface_force_{a}" for a in AXES), "unbalanced_force_ratio",
-            "step"]
+    return ["time", *per_body, *lining_columns(linings), *(f"interface_force_{a}" for a in AXES),
+            "unbalanced_force_ratio", "step"]
+
+
+def lining_columns(linings):
+    """series.csv columns of the linings: thrust and moment at each of :data:`LINING_GAUGES`."""
+    return [f"{lining.volume}_{q}_{where}" for lining in linings for q in ("thrust", "moment")
+            for where in LINING_GAUGES]
 
 
 def rotation_matrix(axis_angle):
@@ -526,7 +536,7 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, res
     from fe_domain.output import FieldWriter
     em = case.embedded
     row_time = em.loading_time / em.rows
-    gauges = lining_gauges(case, model) if em.linings else []
+    gauges = lining_gauges(case, model.solid) if em.linings else []
     if resume:
         first_row, start = state["row"] + 1, state["loading_start_time"]
         ramp.start = start
@@ -637,6 +647,10 @@ def run(prepared):
     """Fill, rest, seat, load (:func:`simulate`), then the report
     (:func:`cosim.apps.embedded_report.report`)."""
     from cosim.apps.embedded_report import report
+    if prepared.case.embedded.model == "fe":
+        from cosim.apps.embedded_fe import run as run_fe
+        run_fe(prepared)
+        return
     outcome = simulate(prepared)
     if outcome is not None:
         report(prepared, outcome)

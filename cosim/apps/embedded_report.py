@@ -43,31 +43,34 @@ def report(prepared, outcome):
     plot_section(outcome, prepared.built["split"], outcome.out_dir / "displacement_section.png",
                  f"{case.case.name} ({case.embedded.model})")
     if case.embedded.ground:
-        write_trough(outcome, prepared.built["split"].surfaces[case.embedded.ground], case.dem.gravity,
-                     outcome.out_dir / "settlement_trough.csv")
+        write_trough(prepared.built["split"].surfaces[case.embedded.ground], case.dem.gravity,
+                     outcome.out_dir / "settlement_trough.csv", outcome.fe_motion, (outcome.start, outcome.grains))
     compare_models(Path(prepared.out_dir), outcome.rigid, case.case.name)
     total = summary["wall_clock_s"]["total_s"]
     say(f"[{case.case.name}/{case.embedded.model}] done: wall-clock {total:.0f} s, of which {outcome.compiling:.0f} s "
         "compiling (first run only)")
 
 
-def write_trough(outcome, triangles, gravity, path):
+def write_trough(triangles, gravity, path, fe_motion=None, grains=None):
     """settlement_trough.csv: the settlement (m, down +, along g) during the loading of the FE
-    nodes that are vertices of the ground surface's ``triangles`` (source "fe"), and of the grains
-    of the top layer under it, their centre within a largest grain's diameter of the surface's
-    highest point at the loading's start (source "dem"), by their position x, y (rank 0)."""
+    nodes that are vertices of the ground surface's ``triangles`` (``fe_motion``: the nodes'
+    coordinates and displacement; source "fe"), and of the grains of the top layer under it,
+    their centre within a largest grain's diameter of the surface's highest point at the
+    loading's start (``grains``: their positions then and the particles at the end; source
+    "dem"), by their position x, y (rank 0)."""
     down = np.asarray(gravity, float) / np.linalg.norm(gravity)
     rows = []
-    if outcome.fe_motion is not None:
-        coordinates, displacement = outcome.fe_motion
+    if fe_motion is not None:
+        coordinates, displacement = fe_motion
         vertices = {tuple(v) for v in np.round(triangles.reshape(-1, 3), 12)}
         on = np.array([tuple(c) in vertices for c in np.round(coordinates, 12)], bool)
         rows += [(x, y, d @ down, "fe") for (x, y, _), d in zip(coordinates[on], displacement[on], strict=True)]
-    top = float((-triangles.reshape(-1, 3) @ down).max())
-    grains = outcome.grains
-    layer = -outcome.start @ down > top - 2.0 * float(grains.radius.max())
-    moved = (grains.pos - outcome.start)[layer] @ down
-    rows += [(x, y, d, "dem") for (x, y, _), d in zip(outcome.start[layer], moved, strict=True)]
+    if grains is not None:
+        start, end = grains
+        top = float((-triangles.reshape(-1, 3) @ down).max())
+        layer = -start @ down > top - 2.0 * float(end.radius.max())
+        moved = (end.pos - start)[layer] @ down
+        rows += [(x, y, d, "dem") for (x, y, _), d in zip(start[layer], moved, strict=True)]
     rows.sort(key=lambda row: (row[3], row[0], row[1]))
     text = "x,y,settlement,source\n" + "".join(f"{x:.9g},{y:.9g},{d:.9g},{src}\n" for x, y, d, src in rows)
     atomic_write_text(path, text)

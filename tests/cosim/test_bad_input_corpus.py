@@ -310,6 +310,10 @@ CORPUS = [
     Bad("embedded", "no physical surface 'roof'", sets=['embedded.ground="roof"'],
         label="a ground surface not in the model"),
     Bad("embedded", "greater than 0", sets=["embedded.volumes[1].K0=-0.5"], label="a negative K0"),
+    Bad("embedded", "solved statically: 'displacement'", sets=['embedded.model="fe"'],
+        label="the FE-only twin in the mixed formulation"),
+    Bad("embedded", "rigid bodies move grains", sets=['embedded.model="fe"', 'embedded.formulation="displacement"'],
+        label="the FE-only twin with a rigid body"),
     # ---------------------------------------------------------------- footing (docs/design.md §7)
     Bad("footing", "at least 3 of the largest grains", sets=["zone.depth=0.005"], label="zone shallower than 3 grains"),
     Bad("footing", "at least 3 of the largest grains", sets=["soil.thickness=0.004"],

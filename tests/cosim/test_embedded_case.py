@@ -116,3 +116,39 @@ def test_a_tunnel_lining_reports_its_section_forces_and_contracts(tmp_path):
                            encoding=None)   # the ground's FE nodes (the ring is buried: no grains under it)
     assert set(trough["source"]) == {"fe"} and np.all(np.isfinite(trough["settlement"]))
     assert trough["x"].min() == pytest.approx(0.0, abs=1e-12) and trough["x"].max() == pytest.approx(0.15, rel=1e-9)
+
+
+def test_the_fe_only_tunnel_agrees_with_einstein_and_schwartz(tmp_path):
+    """runs/tunnel_small.toml as its FE-only twin (the zone FE soil, K0 = 0.5), made deep (cover
+    3 D, ground 0.4 m wide and 0.2 m below) with a lining 50 x stiffer than the soil's
+    flexibility ratio allows in the coupled run (F* = 23, C* = 0.021, as a concrete lining in
+    sand) and without weight, 4 cells through it: the part of N(θ) and M(θ) symmetric about the
+    springline (the overburden's gradient and the free surface load the crown and invert
+    unequally; the closed form has neither) against the no-slip solution of Einstein & Schwartz
+    (1979) with σ_v at the axis: thrust within 6 % (the ground presses on R + t/2: +5 % at the
+    springline), moment within 10 % of its largest. Contracting the tied lining pulls it into
+    tension (the FE ground cannot let go of it)."""
+    from fe_domain.lining import LinedTunnel, einstein_schwartz
+    D, C, t, below, z_axis = 0.06, 0.18, 0.003, 0.2, 0.23
+    parameters = f"{{ D = {D}, C = {C}, t = {t}, a = 0.015, W = 0.4, below = {below}, Ly = 0.01, h = 0.00075, " \
+                 "h_far = 0.03, grow = 0.1, h_y = 0.005 }"
+    sets = ['embedded.model="fe"', f"embedded.parameters={parameters}",
+            f"embedded.linings[0].centre=[0.0, 0.0, {z_axis}]", "embedded.volumes[2].E=1.0e9",
+            "embedded.volumes[2].rho=1.0"]
+    args = [a for s in sets for a in ("--set", s)]
+    assert main(["run", "runs/tunnel_small.toml", *args, "--out", str(tmp_path)]) == 0
+    out = tmp_path / "fe"
+    sections = np.genfromtxt(out / "lining_sections.csv", delimiter=",", names=True)
+    density = json.loads((out / "summary.json").read_text())["soil_density"]
+    assert density == pytest.approx(2650.0 / 1.74)
+    angles = sections["angle_deg"]
+    assert np.allclose(angles + angles[::-1], 180.0)       # cuts symmetric about the springline
+    thrust = 0.5 * (sections["thrust_at_rest"] + sections["thrust_at_rest"][::-1])
+    moment = 0.5 * (sections["moment_at_rest"] + sections["moment_at_rest"][::-1])
+    tunnel = LinedTunnel(radius=D / 2 - t / 2, thickness=t, ground_E=2.0e6, ground_nu=0.38, lining_E=1.0e9,
+                         lining_nu=0.2, pressure=density * 9.81 * (C + D / 2), K=0.5)
+    thrust_es, moment_es, c_star, f_star = einstein_schwartz(tunnel, angles)
+    assert f_star == pytest.approx(23.1, abs=0.1) and c_star == pytest.approx(0.0213, abs=1e-4)
+    assert np.max(np.abs(thrust / thrust_es - 1.0)) < 0.06
+    assert np.max(np.abs(moment - moment_es)) < 0.10 * np.max(np.abs(moment_es))
+    assert np.all(sections["thrust_end"] < 0.0)
