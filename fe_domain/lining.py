@@ -140,6 +140,59 @@ class SectionGauge:
         return SectionForces(np.asarray(angles_deg, float), np.array(thrust), np.array(moment))
 
 
+class DiameterGauge:
+    """The change of the ring's inside diameters, vertical (crown to invert) and horizontal
+    (springline to springline), over the intrados diameter D = 2 r_i: ΔD_v / D and ΔD_h / D,
+    lengthening positive; the ovalisation is ΔD_h / D − ΔD_v / D. Each diameter is read from
+    the displacements of the two intrados nodes of ``group`` nearest its ends (at the ring's
+    mid-length along the axis); where a model of symmetry holds half the ring (no node within
+    ``REACH`` of an end), the other end mirrors the one it has. Collective (:meth:`changes`)."""
+
+    REACH = np.radians(5.0)
+    ENDS = {"crown": 0.0, "springline": 0.5 * np.pi, "invert": np.pi, "other_springline": -0.5 * np.pi}
+
+    def __init__(self, solid, group: str, ring: Ring):
+        self.solid, self.ring = solid, ring
+        owned = solid.tagged_mesh.cells(group)
+        nodes = np.unique(solid.Q.dofmap.list.array.reshape(-1, 4)[owned])
+        nodes = nodes[nodes < solid.n_owned_nodes]
+        axis, up, side = ring.frame()
+        offset = solid.node_coordinates[nodes] - np.asarray(ring.centre, float)
+        along = offset @ axis
+        radial = offset - np.outer(along, axis)
+        on_intrados = np.linalg.norm(radial, axis=1) < ring.inner_radius + 1e-6 * ring.outer_radius
+        angle = np.arctan2(radial @ side, radial @ up)
+        middle = 0.5 * (solid.comm.allreduce(float(along.min(initial=np.inf)), op=MPI.MIN)
+                        + solid.comm.allreduce(float(along.max(initial=-np.inf)), op=MPI.MAX))
+        self.ends = {}   # end: (this rank's node or -1)
+        for end, target in self.ENDS.items():
+            miss = np.abs(np.angle(np.exp(1j * (angle - target))))
+            score = np.where(on_intrados & (miss < self.REACH), miss * ring.inner_radius + np.abs(along - middle),
+                             np.inf)
+            best = int(np.argmin(score)) if len(score) else -1
+            mine = float(score[best]) if best >= 0 else np.inf
+            winner = solid.comm.allreduce((mine, solid.comm.rank), op=MPI.MINLOC)
+            found = winner[0] < np.inf
+            self.ends[end] = (nodes[best] if found and winner[1] == solid.comm.rank else -1, found)
+
+    def _displacement(self, end):
+        node, found = self.ends[end]
+        local = self.solid.displacement[node] if node >= 0 else np.zeros(3)
+        return self.solid.comm.allreduce(local) if found else None
+
+    def changes(self) -> tuple[float, float]:
+        """(ΔD_v / D, ΔD_h / D) now."""
+        axis, up, side = self.ring.frame()
+        u = {end: self._displacement(end) for end in self.ENDS}
+        if u["crown"] is None or u["springline"] is None:
+            raise ValueError("the lining has no intrados node at its crown or springline")
+        invert = u["invert"] if u["invert"] is not None else u["crown"] - 2.0 * (u["crown"] @ up) * up
+        other = u["other_springline"] if u["other_springline"] is not None \
+            else u["springline"] - 2.0 * (u["springline"] @ side) * side
+        diameter = 2.0 * self.ring.inner_radius
+        return float((u["crown"] - invert) @ up / diameter), float((u["springline"] - other) @ side / diameter)
+
+
 def section_forces(solid, group: str, ring: Ring, angles_deg) -> SectionForces:
     """N(θ) and M(θ) of the cells of ``group`` at ``angles_deg`` once (:class:`SectionGauge`)."""
     return SectionGauge(solid, group, ring).forces(angles_deg)

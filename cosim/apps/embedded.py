@@ -476,15 +476,32 @@ LINING_GAUGES = {"crown": 5.0, "springline": 90.0, "invert": 175.0}
 LINING_SPACING = 5.0  # degrees between the cuts of <volume>_sections.csv
 
 
+@dataclass(frozen=True)
+class LiningGauge:
+    """What is read from a lining each row: its section forces and its diameters
+    (:class:`fe_domain.lining.SectionGauge`, :class:`fe_domain.lining.DiameterGauge`)."""
+    sections: object
+    diameters: object
+
+    @property
+    def ring(self):
+        return self.sections.ring
+
+    def row(self):
+        """The lining's values of a series.csv row (:func:`lining_columns`); collective."""
+        forces = self.sections.forces(list(LINING_GAUGES.values()))
+        return [*forces.thrust, *forces.moment, *self.diameters.changes()]
+
+
 def lining_gauges(case, solid):
-    """A :class:`fe_domain.lining.SectionGauge` per lining of ``solid`` (its ring found from its
-    cells, θ from the crown, up = −g); collective."""
-    from fe_domain.lining import SectionGauge, ring_of_cells
+    """A :class:`LiningGauge` per lining of ``solid`` (its ring found from its cells, θ from the
+    crown, up = −g); collective."""
+    from fe_domain.lining import DiameterGauge, SectionGauge, ring_of_cells
     up = -np.asarray(case.dem.gravity, float)
     gauges = []
     for lining in case.embedded.linings:
         ring = ring_of_cells(solid, lining.volume, lining.centre, lining.axis, up)
-        gauges.append(SectionGauge(solid, lining.volume, ring))
+        gauges.append(LiningGauge(SectionGauge(solid, lining.volume, ring), DiameterGauge(solid, lining.volume, ring)))
     return gauges
 
 
@@ -498,9 +515,11 @@ def columns(rigid, linings=()):
 
 
 def lining_columns(linings):
-    """series.csv columns of the linings: thrust and moment at each of :data:`LINING_GAUGES`."""
-    return [f"{lining.volume}_{q}_{where}" for lining in linings for q in ("thrust", "moment")
-            for where in LINING_GAUGES]
+    """series.csv columns of the linings: thrust and moment at each of :data:`LINING_GAUGES`, the
+    change of the vertical and horizontal inside diameters over the diameter (lengthening +)."""
+    return [name for lining in linings for name in
+            [f"{lining.volume}_{q}_{where}" for q in ("thrust", "moment") for where in LINING_GAUGES]
+            + [f"{lining.volume}_diameter_change_{d}" for d in ("vertical", "horizontal")]]
 
 
 def rotation_matrix(axis_angle):
@@ -537,6 +556,8 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, res
     em = case.embedded
     row_time = em.loading_time / em.rows
     gauges = lining_gauges(case, model.solid) if em.linings else []
+    state["lining_outer_radii"] = {lining.volume: gauge.ring.outer_radius
+                                   for lining, gauge in zip(em.linings, gauges, strict=True)}
     if resume:
         first_row, start = state["row"] + 1, state["loading_start_time"]
         ramp.start = start
@@ -576,8 +597,7 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, res
             row += [float(np.linalg.norm(body.velocity)) * t, float(np.linalg.norm(body.angular_velocity)) * t,
                     *force, *moment]
         for gauge in gauges:
-            forces = gauge.forces(list(LINING_GAUGES.values()))
-            row += [*forces.thrust, *forces.moment]
+            row += gauge.row()
         row += [*(model.take_interface_impulse() / elapsed), unbalanced(model), model.engine.step_count]
         if rows is not None:
             rows.append(row)
@@ -610,7 +630,7 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, res
 
 def sections(gauge):
     """{angle_deg, thrust, moment} lists of a lining every LINING_SPACING degrees; collective."""
-    forces = gauge.forces(gauge.angles_deg(LINING_SPACING))
+    forces = gauge.sections.forces(gauge.sections.angles_deg(LINING_SPACING))
     return {"angle_deg": forces.angle_deg.tolist(), "thrust": forces.thrust.tolist(), "moment": forces.moment.tolist()}
 
 

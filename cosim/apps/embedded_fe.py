@@ -17,7 +17,6 @@ import time
 from pathlib import Path
 
 from cosim.apps.embedded import (
-    LINING_GAUGES,
     LoadingRamp,
     Roles,
     _materials,
@@ -44,6 +43,7 @@ def bulk_density(case):
 def run(prepared):
     """Solve at rest and over the loading; write the outputs (rank 0)."""
     from cosim.apps.embedded_report import write_trough
+    from cosim.apps.tunnel_report import ground_height, report_linings
     from fe_domain.output import FieldWriter
     from fe_domain.static import StaticSolver
     case, em = prepared.case, prepared.case.embedded
@@ -69,8 +69,7 @@ def run(prepared):
         static.solve(k * em.loading_time / em.rows)
         row = [solid.time]
         for gauge in gauges:
-            forces = gauge.forces(list(LINING_GAUGES.values()))
-            row += [*forces.thrust, *forces.moment]
+            row += gauge.row()
         if rows is not None:
             rows.append([*row, k])
             fields.write()
@@ -85,8 +84,11 @@ def run(prepared):
                   (solid.displacement - rest_displacement)[:solid.n_owned_nodes])
         write_trough(split.surfaces[em.ground], case.dem.gravity, out_dir / "settlement_trough.csv", motion)
     cells = solid.mesh.topology.index_map(3).size_local
+    radii = {lining.volume: gauge.ring.outer_radius for lining, gauge in zip(em.linings, gauges, strict=True)}
+    ground = ground_height(split.surfaces[em.ground], case.dem.gravity) if em.ground else None
+    linings = report_linings(case, out_dir, "fe", radii, ground)
     wall_clock = time.perf_counter() - t0
-    summary = {"model": "fe", "fe_cells": cells, "soil_density": density, "solve": "static (LU)",
+    summary = {"model": "fe", "fe_cells": cells, "soil_density": density, "solve": "static (LU)", "linings": linings,
                "wall_clock_s": {"total_s": wall_clock}}
     atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     say(f"[{name}] {cells} cells, soil density {density:.0f} kg/m³, solved at rest and {em.rows} rows in "

@@ -34,17 +34,21 @@ def summary_of(prepared, outcome):
 def report(prepared, outcome):
     """summary.json, load_displacement.png (with rigid bodies), displacement_section.png and, when
     both models of the case have run, their comparison (rank 0)."""
-    case = prepared.case
+    from cosim.apps.tunnel_report import ground_height, report_linings
+    case, em, split = prepared.case, prepared.case.embedded, prepared.built["split"]
     summary = summary_of(prepared, outcome)
+    if em.ground:
+        write_trough(split.surfaces[em.ground], case.dem.gravity, outcome.out_dir / "settlement_trough.csv",
+                     outcome.fe_motion, (outcome.start, outcome.grains))
+    if em.linings:
+        ground = ground_height(split.surfaces[em.ground], case.dem.gravity) if em.ground else None
+        summary["linings"] = report_linings(case, outcome.out_dir, em.model, outcome.state["lining_outer_radii"],
+                                            ground)
     atomic_write_text(outcome.out_dir / "summary.json", json.dumps(summary, indent=2) + "\n")
     if outcome.rigid:
-        plot_rigid_forces({case.embedded.model: outcome.series}, outcome.rigid,
-                          outcome.out_dir / "load_displacement.png", case.case.name)
-    plot_section(outcome, prepared.built["split"], outcome.out_dir / "displacement_section.png",
-                 f"{case.case.name} ({case.embedded.model})")
-    if case.embedded.ground:
-        write_trough(prepared.built["split"].surfaces[case.embedded.ground], case.dem.gravity,
-                     outcome.out_dir / "settlement_trough.csv", outcome.fe_motion, (outcome.start, outcome.grains))
+        plot_rigid_forces({em.model: outcome.series}, outcome.rigid, outcome.out_dir / "load_displacement.png",
+                          case.case.name)
+    plot_section(outcome, split, outcome.out_dir / "displacement_section.png", f"{case.case.name} ({em.model})")
     compare_models(Path(prepared.out_dir), outcome.rigid, case.case.name)
     total = summary["wall_clock_s"]["total_s"]
     say(f"[{case.case.name}/{case.embedded.model}] done: wall-clock {total:.0f} s, of which {outcome.compiling:.0f} s "

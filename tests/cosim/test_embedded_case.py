@@ -112,6 +112,11 @@ def test_a_tunnel_lining_reports_its_section_forces_and_contracts(tmp_path):
     series = read_series(tmp_path / "coupled" / "series.csv")
     for where in ("crown", "springline", "invert"):
         assert f"lining_thrust_{where}" in series and f"lining_moment_{where}" in series
+    vertical, horizontal = series["lining_diameter_change_vertical"], series["lining_diameter_change_horizontal"]
+    assert vertical[-1] < vertical[0] and horizontal[-1] < horizontal[0]     # the contracting lining shrinks
+    linings = json.loads((tmp_path / "coupled" / "summary.json").read_text())["linings"]
+    assert linings["lining"]["outer_radius_m"] == pytest.approx(0.03, rel=1e-6)
+    assert (tmp_path / "coupled" / "lining_polar.png").stat().st_size > 0
     trough = np.genfromtxt(tmp_path / "coupled" / "settlement_trough.csv", delimiter=",", names=True, dtype=None,
                            encoding=None)   # the ground's FE nodes (the ring is buried: no grains under it)
     assert set(trough["source"]) == {"fe"} and np.all(np.isfinite(trough["settlement"]))

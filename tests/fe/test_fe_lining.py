@@ -16,7 +16,7 @@ from fe_domain.boundary import (
     ramp,
 )
 from fe_domain.explicit import ExplicitSolid
-from fe_domain.lining import Ring, section_forces
+from fe_domain.lining import DiameterGauge, Ring, section_forces
 from fe_domain.mesh import load_geo
 
 RI, RO, E, NU = 0.045, 0.05, 1e9, 0.2
@@ -60,6 +60,19 @@ def test_a_free_ring_contracts_without_stress():
     t = RO - RI
     assert np.abs(forces.thrust).max() < 1e-3 * E * c * t
     assert np.abs(forces.moment).max() < 1e-3 * E * c * t**2
+    vertical, horizontal = DiameterGauge(solid, "ring", RING).changes()  # the quarter ring: ends mirrored
+    assert vertical == pytest.approx(-c, rel=2e-3) and horizontal == pytest.approx(-c, rel=2e-3)
+
+
+def test_diameter_changes_of_an_ovalised_ring():
+    """u = ε (x, 0, −z) stretches the horizontal diameter by ε and shortens the vertical one by
+    ε: ovalisation ΔD_h/D − ΔD_v/D = 2ε; a rigid shift along the axis changes neither."""
+    tagged = load_geo("ring", 0.005, MPI.COMM_SELF, {"Ri": RI, "Ro": RO, "h": 0.005, "Ly": 0.005})
+    solid = ExplicitSolid(tagged, Material(E=E, nu=NU, rho=2500.0), boundary_conditions=SYMMETRY)
+    eps = 1e-3
+    solid.displacement[:] = eps * solid.node_coordinates * [1.0, 0.0, -1.0] + [0.0, 1e-3, 0.0]
+    vertical, horizontal = DiameterGauge(solid, "ring", RING).changes()
+    assert vertical == pytest.approx(-eps, rel=1e-9) and horizontal == pytest.approx(eps, rel=1e-9)
 
 
 def test_a_cut_outside_the_ring_is_refused():
@@ -98,9 +111,10 @@ def test_lined_tunnel_against_einstein_schwartz():
 def test_section_forces_and_contraction_are_the_same_on_all_ranks_and_on_one():
     """Collective (``mpirun -n 2 pytest -m mpi``): the quarter ring split over the ranks,
     contracting under an external pressure (both ramped), gives every rank the same thrust and
-    moment as the ring on COMM_SELF, to round-off (the sums follow the partition). Mass-
-    proportional damping: local damping's sign(v) turns round-off near rest into differences
-    of order 1e-3 (measured 0.08 % on the thrust), as it would between any two summation orders."""
+    moment (and diameter changes) as the ring on COMM_SELF, to round-off (the sums follow the
+    partition). Mass-proportional damping: local damping's sign(v) turns round-off near rest
+    into differences of order 1e-3 (measured 0.08 % on the thrust), as it would between any two
+    summation orders."""
     def forces(comm):
         tagged = load_geo("ring", 0.0025, comm, {"Ri": RI, "Ro": RO, "h": 0.0025, "Ly": 0.005})
         material = Material(E=E, nu=NU, rho=2500.0)
@@ -110,8 +124,10 @@ def test_section_forces_and_contraction_are_the_same_on_all_ranks_and_on_one():
         solid = ExplicitSolid(tagged, material, boundary_conditions=SYMMETRY, loads=loads,
                               damping=MassProportionalDamping(1e4), dt=dt)
         solid.run(600)
-        return section_forces(solid, "ring", RING, ANGLES)
-    together, alone = forces(MPI.COMM_WORLD), forces(MPI.COMM_SELF)
+        return section_forces(solid, "ring", RING, ANGLES), DiameterGauge(solid, "ring", RING).changes()
+    (together, diameters), (alone, diameters_alone) = forces(MPI.COMM_WORLD), forces(MPI.COMM_SELF)
+    assert np.allclose(diameters, diameters_alone, rtol=1e-9, atol=0)
+    assert np.allclose(MPI.COMM_WORLD.allgather(diameters), diameters, rtol=0, atol=0)
     scale = np.abs(alone.thrust).max()
     assert np.abs(together.thrust - alone.thrust).max() < 1e-9 * scale
     assert np.abs(together.moment - alone.moment).max() < 1e-9 * scale * (RO - RI)

@@ -1,0 +1,155 @@
+"""The tunnel in sand (runs/tunnel.toml), coupled against its all-DEM twin over several packings,
+with the FE-only twin beside them, and the settlement trough against Peck (1969) (issue 39
+item 3; docs/guide/tunnel.md).
+
+Runs the case with each seed in both models unless a run's summary exists (``--jobs`` runs at
+a time, one thread each: ``NUMBA_NUM_THREADS=1``; about 15 minutes a coupled run and 50 an
+all-DEM one on this 2-core machine), and the FE-only twin once (it has no packing). Per run: the lining's thrust and
+moment at the crown, springline and invert at rest (row 0 of series.csv) and at the end of
+the loading (the mean of the last TAIL of the rows), and the surface trough's Peck fit
+(S_max, i, K = i / z0, the surface volume loss V_s / A; cosim.apps.tunnel_report). Per model
+the mean and standard deviation over the seeds, and the coupled model's mean against the
+all-DEM one. Writes ``<out>/table.md`` and the pictures of :func:`pictures`.
+
+    python studies/tunnel_seeds.py [--seeds 11 12 13] [--case runs/tunnel.toml] [--out runs/out/tunnel_seeds] [--jobs 2]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from cosim.apps.tunnel_report import fit_peck, plot_polar, plot_trough, read_sections, read_trough  # noqa: E402
+from cosim.lab.shear_report import read_series  # noqa: E402
+
+MODELS = ("coupled", "dem")
+WHERE = ("crown", "springline", "invert")
+TAIL = 0.2  # the end of the loading: the mean over this last fraction of the rows
+
+
+def run_all(case, seeds, out, jobs):
+    """Every model of every seed whose summary does not exist, ``jobs`` at a time, one thread
+    each (the all-DEM runs first: they are the longest)."""
+    from concurrent.futures import ThreadPoolExecutor
+    todo = [(model, seed) for model in reversed(MODELS) for seed in seeds
+            if not (out / f"seed{seed}" / model / "summary.json").exists()]
+
+    def one(model, seed):
+        with open(out / f"seed{seed}_{model}.log", "w") as log:
+            command = [sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out / f"seed{seed}"),
+                       "--set", f"case.seed={seed}", "--set", f'embedded.model="{model}"']
+            code = subprocess.run(command, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT,
+                                  env={**os.environ, "NUMBA_NUM_THREADS": "1"}).returncode
+        if code != 0:
+            raise SystemExit(f"the {model} run of seed {seed} failed: see {out}/seed{seed}_{model}.log")
+
+    with ThreadPoolExecutor(jobs) as pool:
+        for done in [pool.submit(one, model, seed) for model, seed in todo]:
+            done.result()
+
+
+def run_fe(case, out):
+    if not (out / "fe" / "summary.json").exists():
+        subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out),
+                        "--set", 'embedded.model="fe"'], cwd=ROOT, check=True)
+
+
+def measured(folder, volume="lining"):
+    """One run's lining forces at rest and at the end, its trough's fit and its wall-clock."""
+    summary = json.loads((folder / "summary.json").read_text())
+    series = read_series(folder / "series.csv")
+    n = max(1, int(round(TAIL * (len(series["time"]) - 1))))
+    values = {}
+    for q in ("thrust", "moment"):
+        for where in WHERE:
+            column = series[f"{volume}_{q}_{where}"]
+            values[f"{q}_{where}_rest"] = float(column[0])
+            values[f"{q}_{where}_end"] = float(np.mean(column[-n:]))
+    trough = summary["linings"][volume]["trough"]
+    values.update({"s_max_mm": 1e3 * trough["s_max_m"], "i_mm": 1e3 * trough["i_m"], "K": trough["K"],
+                   "surface_volume_loss_pct": 100.0 * trough["surface_volume_loss"],
+                   "wall_clock_s": summary["wall_clock_s"]["total_s"], "grains": summary.get("grains", 0)})
+    return values
+
+
+def table(rows, fe):
+    """table.md: per quantity, each model's mean ± std over the seeds, coupled against all-DEM."""
+    keys = list(next(iter(rows["coupled"])).keys())
+    lines = ["| quantity | coupled (mean ± std) | all-DEM (mean ± std) | coupled − all-DEM | FE-only |",
+             "|---|---|---|---|---|"]
+    for key in keys:
+        c, d = (np.array([r[key] for r in rows[m]]) for m in MODELS)
+        diff = (c.mean() - d.mean()) / abs(d.mean()) if d.mean() else float("nan")
+        lines.append(f"| {key} | {c.mean():.4g} ± {c.std(ddof=1) if len(c) > 1 else 0:.2g} | "
+                     f"{d.mean():.4g} ± {d.std(ddof=1) if len(d) > 1 else 0:.2g} | {100 * diff:+.1f} % | "
+                     f"{fe.get(key, float('nan')):.4g} |")
+    return "\n".join(lines) + "\n"
+
+
+def pictures(folders, fe_folder, case_name, axis_x, z0):
+    """docs/tunnel_polar_rest.png (N and M at rest: each model's mean over the seeds, and the
+    FE-only twin's), docs/tunnel_polar_end.png (at the end of the loading, coupled and all-DEM:
+    the FE-only lining, tied to its ground, is pulled into tension by the contraction),
+    docs/tunnel_trough.png (every run's settlements and fitted trough) and the first seed's
+    displacement sections."""
+    mean = {}
+    for model in MODELS:
+        runs = [read_sections(folder / "lining_sections.csv") for label, folder in folders if label.startswith(model)]
+        mean[model] = {k: np.mean([r[k] for r in runs], axis=0) for k in runs[0]}
+    fe = read_sections(fe_folder / "lining_sections.csv")
+    names = {"coupled": f"coupled (mean of {len(folders) // 2})", "dem": f"all-DEM (mean of {len(folders) // 2})"}
+    for when, with_fe in (("rest", True), ("end", False)):
+        curves = {names[m]: (mean[m]["angle_deg"], mean[m][f"thrust_{when}" if when == "end" else "thrust_at_rest"],
+                             mean[m][f"moment_{when}" if when == "end" else "moment_at_rest"]) for m in MODELS}
+        if with_fe:
+            curves["FE-only"] = (fe["angle_deg"], fe["thrust_at_rest"], fe["moment_at_rest"])
+        plot_polar(curves, ROOT / "docs" / f"tunnel_polar_{when}.png",
+                   f"{case_name}: the lining {'at rest' if when == 'rest' else 'at the end of the loading'}")
+    troughs = {}
+    for label, folder in [*folders, ("FE-only", fe_folder)]:
+        x, settlement = read_trough(folder / "settlement_trough.csv", axis_x)
+        troughs[label] = (x, settlement, fit_peck(x, settlement, z0))
+    plot_trough(troughs, ROOT / "docs" / "tunnel_trough.png", f"{case_name}: surface settlement against Peck (1969)")
+    for model in MODELS:
+        first = next(folder for label, folder in folders if label.startswith(model))
+        shutil.copy(first / "displacement_section.png", ROOT / "docs" / f"tunnel_displacement_{model}.png")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12, 13])
+    parser.add_argument("--case", type=Path, default=ROOT / "runs" / "tunnel.toml")
+    parser.add_argument("--out", type=Path, default=ROOT / "runs" / "out" / "tunnel_seeds")
+    parser.add_argument("--jobs", type=int, default=2, help="runs at a time, one thread each")
+    args = parser.parse_args()
+    import tomllib
+    case = tomllib.loads(args.case.read_text())
+    lining = case["embedded"]["linings"][0]
+    p = case["embedded"]["parameters"]
+    z0 = p["C"] + p["D"] / 2.0
+    args.out.mkdir(parents=True, exist_ok=True)
+    run_fe(args.case, args.out / "fe_only")
+    run_all(args.case, args.seeds, args.out, args.jobs)
+    folders, rows = [], {m: [] for m in MODELS}
+    for seed in args.seeds:
+        out = args.out / f"seed{seed}"
+        for model in MODELS:
+            rows[model].append(measured(out / model))
+            folders.append((f"{model} {seed}", out / model))
+    fe = measured(args.out / "fe_only" / "fe")
+    text = table(rows, fe)
+    (args.out / "table.md").write_text(text)
+    print(text)
+    pictures(folders, args.out / "fe_only" / "fe", case["case"]["name"], lining["centre"][0], z0)
+
+
+if __name__ == "__main__":
+    main()
