@@ -1,0 +1,41 @@
+"""The tunnel's report (cosim.apps.tunnel_report): Peck's trough fitted to settlements, its
+volume, and the polar plots of the lining's forces."""
+import math
+
+import numpy as np
+import pytest
+
+from cosim.apps.tunnel_report import PeckTrough, fit_peck, plot_polar, trough_summary
+
+
+def test_the_fit_recovers_a_gaussian_trough_and_its_volume():
+    """Settlements drawn from S_max exp(−x²/2i²) with 5 % noise: S_max and i back within 3 %;
+    V_s = √(2π) i S_max is the trough's integral over the whole width."""
+    rng = np.random.default_rng(3)
+    x = np.linspace(0.0, 0.2, 120)
+    exact = PeckTrough(s_max=2.6e-4, i=0.032, z0=0.09)
+    fit = fit_peck(x, exact(x) * (1.0 + 0.05 * rng.standard_normal(len(x))), 0.09)
+    assert fit.s_max == pytest.approx(exact.s_max, rel=0.03) and fit.i == pytest.approx(exact.i, rel=0.03)
+    assert fit.K == pytest.approx(0.032 / 0.09, rel=0.03)
+    grid = np.linspace(-0.5, 0.5, 200001)
+    assert exact.volume() == pytest.approx(np.trapz(exact(grid), grid), rel=1e-9)
+    summary = trough_summary(exact, 0.06, 0.01)
+    assert summary["surface_volume_loss"] == pytest.approx(exact.volume() / (math.pi * 0.06**2 / 4))
+
+
+def test_the_fit_takes_offsets_on_either_side_of_the_axis():
+    x = np.linspace(-0.1, 0.1, 81)
+    exact = PeckTrough(s_max=1e-4, i=0.02, z0=0.05)
+    fit = fit_peck(x, exact(x), 0.05)
+    assert fit.s_max == pytest.approx(1e-4, rel=1e-5) and fit.i == pytest.approx(0.02, rel=1e-5)  # the fit's tolerance
+
+
+def test_polar_plots_of_a_half_ring_and_a_whole_one(tmp_path):
+    """A half ring (0–180° from the crown) is mirrored; a whole one (−180–180°) is drawn as it is;
+    negative thrust (tension) is drawn inside the zero circle."""
+    half = np.arange(2.5, 180.0, 5.0)
+    whole = np.arange(-177.5, 180.0, 5.0)
+    plot_polar({"half": (half, 10.0 + np.cos(np.radians(2 * half)), 0.01 * np.cos(np.radians(2 * half))),
+                "whole": (whole, -5.0 + 0 * whole, 0.02 * np.sin(np.radians(whole)))},
+               tmp_path / "polar.png", "test")
+    assert (tmp_path / "polar.png").stat().st_size > 10_000
