@@ -37,14 +37,14 @@ class PeckTrough:
 
 def fit_peck(x, settlement, z0) -> PeckTrough:
     """Least-squares fit of S_max and i to the settlements (m, down +) at offsets ``x`` (m)
-    from the tunnel's axis (scipy's curve_fit, started from the largest settlement and
-    i = z0 / 3)."""
+    from the tunnel's axis (scipy's curve_fit on x / z0 and S / max S, started from the
+    largest settlement and K = 1/3)."""
     from scipy.optimize import curve_fit
-    x, settlement = np.abs(np.asarray(x, float)), np.asarray(settlement, float)
-    start = [float(settlement.max()), z0 / 3.0]
-    (s_max, i), _ = curve_fit(lambda x, s, i: s * np.exp(-x**2 / (2.0 * i**2)), x, settlement, p0=start,
-                              bounds=([0.0, 1e-6 * z0], [np.inf, 10.0 * z0]))
-    return PeckTrough(float(s_max), float(i), float(z0))
+    x, settlement = np.abs(np.asarray(x, float)) / z0, np.asarray(settlement, float)
+    scale = float(np.abs(settlement).max()) or 1.0       # fitted in units of order one
+    (s_max, k), _ = curve_fit(lambda x, s, k: s * np.exp(-x**2 / (2.0 * k**2)), x, settlement / scale,
+                              p0=[1.0, 1.0 / 3.0], bounds=([0.0, 1e-6], [np.inf, 10.0]))
+    return PeckTrough(float(s_max) * scale, float(k) * z0, float(z0))
 
 
 def read_trough(path, axis_x):

@@ -27,7 +27,7 @@ def test_the_fit_takes_offsets_on_either_side_of_the_axis():
     x = np.linspace(-0.1, 0.1, 81)
     exact = PeckTrough(s_max=1e-4, i=0.02, z0=0.05)
     fit = fit_peck(x, exact(x), 0.05)
-    assert fit.s_max == pytest.approx(1e-4, rel=1e-5) and fit.i == pytest.approx(0.02, rel=1e-5)  # the fit's tolerance
+    assert fit.s_max == pytest.approx(1e-4, rel=1e-6) and fit.i == pytest.approx(0.02, rel=1e-6)
 
 
 def test_polar_plots_of_a_half_ring_and_a_whole_one(tmp_path):
