@@ -447,6 +447,11 @@ class EmbeddedVolume(_Section):
     rho: Optional[float] = Field(
         default=None, gt=0,
         description="density [kg/m^3]; a structure needs it; soil: default the bulk density of the zone's packing")
+    inertia_scale: float = Field(
+        default=1.0, ge=1, le=1e6,
+        description="structure: mass scaling S, its inertia S x rho but its weight rho; raises its critical time step "
+                    "by sqrt(S) so that a stiff lining or wall does not force the FE and DEM steps down (quasi-static "
+                    "loading only: its natural periods grow by sqrt(S)) [-]")
     K0: Optional[float] = Field(
         default=None, gt=0, le=3,
         description="soil: the coefficient of earth pressure at rest of its initial (geostatic) stress, "
@@ -779,9 +784,12 @@ _UNUSED = [
     ("output", ("interval",), lambda c, s: c.case.kind == "embedded",
      "an embedded run writes embedded.rows CSV rows over the loading; set rows instead"),
     ("embedded", ("mesh_size", "parameters"), lambda c, s: s.mesh.endswith(".msh"), "a .msh file is already meshed"),
-    ("embedded.volumes[]", ("E", "nu", "rho", "K0"), lambda c, s: s.role == "zone", "a zone is made of grains"),
+    ("embedded.volumes[]", ("E", "nu", "rho", "K0", "inertia_scale"), lambda c, s: s.role == "zone",
+     "a zone is made of grains"),
     ("embedded.volumes[]", ("K0",), lambda c, s: s.role == "structure",
      "a structure is not in the ground's stress at rest; K0 is for 'soil' volumes"),
+    ("embedded.volumes[]", ("inertia_scale",), lambda c, s: s.role == "soil",
+     "mass scaling is for a stiff structure (a lining, a wall); the soil's inertia meets the grains' at the interface"),
     ("embedded.surfaces[]", ("material",), lambda c, s: s.dem == "free", "a free surface has no wall"),
     ("output", ("interval",), lambda c, s: c.case.kind == "footing",
      "a footing run writes footing.rows CSV rows over the settlement; set rows instead"),

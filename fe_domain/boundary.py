@@ -155,11 +155,15 @@ class LocalNonViscousDamping:
 
 @dataclass(frozen=True)
 class Material:
-    """Isotropic linear elasticity: Young's modulus E (Pa), Poisson ratio ν, density ρ (kg/m³)."""
+    """Isotropic linear elasticity: Young's modulus E (Pa), Poisson ratio ν, density ρ (kg/m³).
+    ``inertia_scale`` S ≥ 1 scales the material's inertia (its lumped mass) but not its weight
+    (gravity, the geostatic stress): mass scaling for a quasi-static problem, which raises its
+    critical time step by √S (a stiff structure in soft ground, e.g. a tunnel lining)."""
 
     E: float
     nu: float
     rho: float
+    inertia_scale: float = 1.0
     shear_modulus: float = field(init=False)
     bulk_modulus: float = field(init=False)
 
@@ -170,10 +174,12 @@ class Material:
             raise ValueError(f"Material.nu = {self.nu!r}: must lie in (-1, 0.5)")
         if not self.rho > 0:
             raise ValueError(f"Material.rho = {self.rho!r}: must be > 0 (kg/m^3)")
+        if not self.inertia_scale >= 1.0:
+            raise ValueError(f"Material.inertia_scale = {self.inertia_scale!r}: must be >= 1")
         object.__setattr__(self, "shear_modulus", self.E / (2.0 * (1.0 + self.nu)))
         object.__setattr__(self, "bulk_modulus", self.E / (3.0 * (1.0 - 2.0 * self.nu)))
 
     @property
     def p_wave_speed(self) -> float:
-        """c_p = √((K + 4G/3)/ρ)."""
-        return float(np.sqrt((self.bulk_modulus + 4.0 * self.shear_modulus / 3.0) / self.rho))
+        """c_p = √((K + 4G/3)/(S ρ)), S the inertia scale."""
+        return float(np.sqrt((self.bulk_modulus + 4.0 * self.shear_modulus / 3.0) / (self.inertia_scale * self.rho)))

@@ -4,6 +4,7 @@ This is the entry point for a case loader: it takes already-parsed values (e.g. 
 TOML table) and returns the solver; it reads no files besides the mesh.  Tables::
 
     material   {"E": 1e7, "nu": 0.3, "rho": 1800}  or  {"<cell group>": {...}, ...}
+               (optional "inertia_scale": mass scaling of that material, Material)
     boundary_conditions  [{"type": "fixed", "boundary": "bottom", "components": [2]},
                           {"type": "velocity", "boundary": "left", "velocity": [1e-3, 0, 0],
                            "components": [0], "ramp": 0.01}]
@@ -60,7 +61,7 @@ def build_solid(mesh: str | TaggedMesh, mesh_size: float | None = None, *, mater
 
 def _material(table: dict):
     if {"E", "nu", "rho"} <= set(table):
-        return Material(E=table["E"], nu=table["nu"], rho=table["rho"])
+        return Material(E=table["E"], nu=table["nu"], rho=table["rho"], inertia_scale=table.get("inertia_scale", 1.0))
     return {group: _material(sub) for group, sub in table.items()}
 
 

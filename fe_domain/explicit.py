@@ -161,9 +161,9 @@ class ExplicitSolid:
         #: force is given once, by the rank that owns its node.
         self.external_force = np.zeros((self.n_nodes, 3))
 
-        self.mass = np.repeat(self._lumped(forms.lumped_mass(ufl.TestFunction(self.Q), self.rho)), 3)
+        self.mass = np.repeat(self._lumped(forms.lumped_mass(ufl.TestFunction(self.Q), self.inertial_rho)), 3)
         self._inverse_mass = 1.0 / self.mass.reshape(-1, 3)
-        cp = np.sqrt((self._K_cells + 4.0 * self._G_cells / 3.0) / self._rho_cells)
+        cp = np.sqrt((self._K_cells + 4.0 * self._G_cells / 3.0) / self._inertial_rho_cells)
         self.dt_critical = self.comm.allreduce(float(np.min(self.h_cells / cp)), op=MPI.MIN)
         w, du = ufl.TestFunction(self.V), ufl.TrialFunction(self.V)
         q, dp = ufl.TestFunction(self.Q), ufl.TrialFunction(self.Q)
@@ -249,22 +249,25 @@ class ExplicitSolid:
         self.cell_volumes = volume
 
     def _setup_material(self, material, alpha_tau):
-        """DG0 fields G, K, ρ from one Material or a {cell group name: Material} map; τ_e."""
+        """DG0 fields G, K, ρ (the weight's density) and Sρ (the inertia's: the material's inertia
+        scale S times ρ) from one Material or a {cell group name: Material} map; τ_e."""
         n_cells = len(self.h_cells)
         materials = {None: material} if isinstance(material, Material) else dict(material)
-        G, K, rho = (np.full(n_cells, np.nan) for _ in range(3))
+        G, K, rho, inertial = (np.full(n_cells, np.nan) for _ in range(4))
         for name, mat in materials.items():
             cells = slice(None) if name is None else self.tagged_mesh.cells(name)
             G[cells], K[cells], rho[cells] = mat.shear_modulus, mat.bulk_modulus, mat.rho
+            inertial[cells] = mat.inertia_scale * mat.rho
         if np.isnan(G).any():
             missing = sorted(set(self.tagged_mesh.names(3)) - set(materials))
             raise ValueError(f"material: cells without a material; cell groups not given: {missing}")
-        self._G_cells, self._K_cells, self._rho_cells = G, K, rho
+        self._G_cells, self._K_cells, self._inertial_rho_cells = G, K, inertial
         self.alpha_tau = alpha_tau if self.mixed else 0.0
         tau = self.alpha_tau * self.h_cells ** 2 / (2.0 * G)
         cell_dofs = self.D0.dofmap.list.array
-        self.G, self.K, self.rho, self.tau = (fem.Function(self.D0, name=n) for n in ("G", "K", "rho", "tau"))
-        for fn, values in ((self.G, G), (self.K, K), (self.rho, rho), (self.tau, tau)):
+        self.G, self.K, self.rho, self.inertial_rho, self.tau = (
+            fem.Function(self.D0, name=n) for n in ("G", "K", "rho", "inertial_rho", "tau"))
+        for fn, values in ((self.G, G), (self.K, K), (self.rho, rho), (self.inertial_rho, inertial), (self.tau, tau)):
             fn.x.array[cell_dofs] = values
 
     def _setup_boundary_conditions(self, conditions):

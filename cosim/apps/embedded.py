@@ -432,7 +432,8 @@ def build_fe(case, split, roles, bulk_density, ramp=None):
     from fe_domain.boundary import Contraction
     from fe_domain.build import build_solid
     from fe_domain.explicit import stable_alpha_tau
-    materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density} for g, v in roles.fe.items()}
+    materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density, "inertia_scale": v.inertia_scale}
+                 for g, v in roles.fe.items()}
     supports = []
     for group, s in roles.surfaces.items():
         if group not in split.fe.groups or s.fe == "free":
