@@ -1,34 +1,19 @@
-"""ParaView output: particles and facet meshes as plain-XML VTU (ASCII), a small
-numpy-only writer."""
+"""ParaView output: particles and facet meshes as VTU files, binary (base64, zlib-compressed),
+written through meshio."""
 from __future__ import annotations
 
 from pathlib import Path
 
+import meshio
 import numpy as np
 
-_VTK_VERTEX = 1
-_VTK_TRIANGLE = 5
 
-
-def _data_array(name, values):
-    values = np.asarray(values)
-    comps = 1 if values.ndim == 1 else values.shape[1]
-    kind = "Int32" if values.dtype.kind in "iub" else "Float64"
-    body = " ".join(str(int(v)) if kind == "Int32" else repr(float(v)) for v in values.ravel())
-    return f'<DataArray type="{kind}" Name="{name}" NumberOfComponents="{comps}" format="ascii">{body}</DataArray>\n'
-
-
-def _write_vtu(path, points, connectivity, cell_size, cell_type, point_data):
-    n_cells = connectivity.size // cell_size if cell_size else 0
-    offsets = np.arange(1, n_cells + 1) * cell_size
-    parts = ['<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">\n',
-             f'<UnstructuredGrid><Piece NumberOfPoints="{len(points)}" NumberOfCells="{n_cells}">\n',
-             "<PointData>\n", *[_data_array(k, v) for k, v in point_data.items()], "</PointData>\n",
-             "<Points>\n", _data_array("Points", np.asarray(points, float).reshape(-1, 3)), "</Points>\n",
-             "<Cells>\n", _data_array("connectivity", connectivity.astype(np.int64)),
-             _data_array("offsets", offsets), _data_array("types", np.full(n_cells, cell_type)), "</Cells>\n",
-             "</Piece></UnstructuredGrid>\n</VTKFile>\n"]
-    Path(path).write_text("".join(parts))
+def _write_vtu(path, points, cells, point_data):
+    """One unstructured grid: ``cells`` (meshio cell type, connectivity), one value per point of
+    every ``point_data`` array."""
+    meshio.Mesh(np.asarray(points, float).reshape(-1, 3), [cells],
+                point_data={k: np.asarray(v) for k, v in point_data.items()}).write(path, file_format="vtu",
+                                                                                   binary=True)
     return Path(path)
 
 
@@ -37,7 +22,7 @@ def write_particles_vtu(path, particles):
     (the owned particles only: ghost copies are left out)."""
     mine = particles.owned
     n = int(np.count_nonzero(mine))
-    return _write_vtu(path, particles.pos[mine], np.arange(n), 1, _VTK_VERTEX, {
+    return _write_vtu(path, particles.pos[mine], ("vertex", np.arange(n).reshape(-1, 1)), {
         "radius": particles.radius[mine], "velocity": particles.vel[mine],
         "angular_velocity": particles.angvel[mine], "force": particles.force[mine],
         "material": particles.material[mine], "group": particles.group[mine]})
@@ -45,7 +30,7 @@ def write_particles_vtu(path, particles):
 
 def write_facets_vtu(path, mesh):
     """A FacetMesh as triangles with vertex velocity, force and impulse."""
-    return _write_vtu(path, mesh.vertices, mesh.triangles.ravel(), 3, _VTK_TRIANGLE, {
+    return _write_vtu(path, mesh.vertices, ("triangle", np.asarray(mesh.triangles).reshape(-1, 3)), {
         "velocity": mesh.vertex_velocity, "force": mesh.vertex_force, "impulse": mesh.vertex_impulse})
 
 
