@@ -291,11 +291,13 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
         chunk = max(1, s.check_every // 5)
         speed = 0.1 * s.plate_velocity
         engine.run(chunk)
-        while _lid_stress(engine, walls, lid_normal, lid_area) > s.release_stress and steps < s.max_steps_per_layer:
+        lifting = 0  # this phase's steps, capped as every phase's
+        while _lid_stress(engine, walls, lid_normal, lid_area) > s.release_stress and lifting < s.max_steps_per_layer:
             _set_lid_velocity(engine, walls, speed * lid_normal)
             engine.run(chunk)
-            steps += chunk
+            lifting += chunk
             lift += speed * engine.dt * chunk
+        steps += lifting
         _set_lid_velocity(engine, walls, np.zeros(3))
         steps += _rest(engine, s)
         say(f"zone fill: lid moved out {lift * 1e3:.3f} mm, where it carries "
