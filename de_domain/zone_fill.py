@@ -292,14 +292,24 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
         speed = 0.1 * s.plate_velocity
         engine.run(chunk)
         lifting = 0  # this phase's steps, capped as every phase's
-        while _lid_stress(engine, walls, lid_normal, lid_area) > s.release_stress and lifting < s.max_steps_per_layer:
+
+        def held():
+            return _lid_stress(engine, walls, lid_normal, lid_area) > s.release_stress
+
+        while True:
+            # lift until the lid is released, then let the grains come to rest against it; again
+            # while it holds them: a lid moving away from a jammed packing reads released before
+            # the grains have caught up with it
             _set_lid_velocity(engine, walls, speed * lid_normal)
-            engine.run(chunk)
-            lifting += chunk
-            lift += speed * engine.dt * chunk
+            while held() and lifting < s.max_steps_per_layer:
+                engine.run(chunk)
+                lifting += chunk
+                lift += speed * engine.dt * chunk
+            _set_lid_velocity(engine, walls, np.zeros(3))
+            lifting += _rest(engine, s)
+            if not held() or lifting >= s.max_steps_per_layer:
+                break
         steps += lifting
-        _set_lid_velocity(engine, walls, np.zeros(3))
-        steps += _rest(engine, s)
         say(f"zone fill: lid moved out {lift * 1e3:.3f} mm, where it carries "
             f"{_lid_stress(engine, walls, lid_normal, lid_area):.3g} Pa (release to <= {s.release_stress:.3g} Pa)")
         pos, vel, angvel = _motion(engine)

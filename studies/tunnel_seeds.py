@@ -82,15 +82,19 @@ def measured(folder, volume="lining"):
 
 def table(rows, fe):
     """table.md: per quantity, each model's mean ± std over the seeds, coupled against all-DEM."""
-    keys = list(next(iter(rows["coupled"])).keys())
+    keys = list(fe.keys())
     lines = ["| quantity | coupled (mean ± std) | all-DEM (mean ± std) | coupled − all-DEM | FE-only |",
              "|---|---|---|---|---|"]
+    def stats(values):
+        if len(values) == 0:
+            return float("nan"), "not run"
+        spread = f" ± {np.std(values, ddof=1):.2g}" if len(values) > 1 else " (one packing)"
+        return float(np.mean(values)), f"{np.mean(values):.4g}{spread}"
+
     for key in keys:
-        c, d = (np.array([r[key] for r in rows[m]]) for m in MODELS)
-        diff = (c.mean() - d.mean()) / abs(d.mean()) if d.mean() else float("nan")
-        lines.append(f"| {key} | {c.mean():.4g} ± {c.std(ddof=1) if len(c) > 1 else 0:.2g} | "
-                     f"{d.mean():.4g} ± {d.std(ddof=1) if len(d) > 1 else 0:.2g} | {100 * diff:+.1f} % | "
-                     f"{fe.get(key, float('nan')):.4g} |")
+        (c, c_text), (d, d_text) = (stats([r[key] for r in rows[m]]) for m in MODELS)
+        diff = f"{100 * (c - d) / abs(d):+.1f} %" if np.isfinite(c) and np.isfinite(d) and d else "–"
+        lines.append(f"| {key} | {c_text} | {d_text} | {diff} | {fe[key]:.4g} |")
     return "\n".join(lines) + "\n"
 
 
@@ -103,12 +107,15 @@ def pictures(folders, fe_folder, case_name, axis_x, z0):
     mean = {}
     for model in MODELS:
         runs = [read_sections(folder / "lining_sections.csv") for label, folder in folders if label.startswith(model)]
-        mean[model] = {k: np.mean([r[k] for r in runs], axis=0) for k in runs[0]}
+        if runs:
+            mean[model] = {k: np.mean([r[k] for r in runs], axis=0) for k in runs[0]}
     fe = read_sections(fe_folder / "lining_sections.csv")
-    names = {"coupled": f"coupled (mean of {len(folders) // 2})", "dem": f"all-DEM (mean of {len(folders) // 2})"}
+    counts = {m: sum(label.startswith(m) for label, _ in folders) for m in mean}
+    names = {m: f"{'coupled' if m == 'coupled' else 'all-DEM'} (mean of {counts[m]})" for m in mean}
     for when, with_fe in (("rest", True), ("end", False)):
-        curves = {names[m]: (mean[m]["angle_deg"], mean[m][f"thrust_{when}" if when == "end" else "thrust_at_rest"],
-                             mean[m][f"moment_{when}" if when == "end" else "moment_at_rest"]) for m in MODELS}
+        column = "at_rest" if when == "rest" else "end"
+        curves = {names[m]: (mean[m]["angle_deg"], mean[m][f"thrust_{column}"], mean[m][f"moment_{column}"])
+                  for m in mean}
         if with_fe:
             curves["FE-only"] = (fe["angle_deg"], fe["thrust_at_rest"], fe["moment_at_rest"])
         plot_polar(curves, ROOT / "docs" / f"tunnel_polar_{when}.png",
@@ -118,7 +125,7 @@ def pictures(folders, fe_folder, case_name, axis_x, z0):
         x, settlement = read_trough(folder / "settlement_trough.csv", axis_x)
         troughs[label] = (x, settlement, fit_peck(x, settlement, z0))
     plot_trough(troughs, ROOT / "docs" / "tunnel_trough.png", f"{case_name}: surface settlement against Peck (1969)")
-    for model in MODELS:
+    for model in mean:
         first = next(folder for label, folder in folders if label.startswith(model))
         shutil.copy(first / "displacement_section.png", ROOT / "docs" / f"tunnel_displacement_{model}.png")
 
@@ -129,6 +136,7 @@ def main():
     parser.add_argument("--case", type=Path, default=ROOT / "runs" / "tunnel.toml")
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "out" / "tunnel_seeds")
     parser.add_argument("--jobs", type=int, default=2, help="runs at a time, one thread each")
+    parser.add_argument("--no-run", action="store_true", help="report the runs that exist, start none")
     args = parser.parse_args()
     import tomllib
     case = tomllib.loads(args.case.read_text())
@@ -137,13 +145,15 @@ def main():
     z0 = p["C"] + p["D"] / 2.0
     args.out.mkdir(parents=True, exist_ok=True)
     run_fe(args.case, args.out / "fe_only")
-    run_all(args.case, args.seeds, args.out, args.jobs)
+    if not args.no_run:
+        run_all(args.case, args.seeds, args.out, args.jobs)
     folders, rows = [], {m: [] for m in MODELS}
     for seed in args.seeds:
         out = args.out / f"seed{seed}"
         for model in MODELS:
-            rows[model].append(measured(out / model))
-            folders.append((f"{model} {seed}", out / model))
+            if (out / model / "summary.json").exists():
+                rows[model].append(measured(out / model))
+                folders.append((f"{model} {seed}", out / model))
     fe = measured(args.out / "fe_only" / "fe")
     text = table(rows, fe)
     (args.out / "table.md").write_text(text)
