@@ -44,6 +44,7 @@ def run(prepared):
     """Solve at rest and over the loading; write the outputs (rank 0)."""
     from cosim.apps.embedded_report import write_trough
     from cosim.apps.tunnel_report import ground_height, report_linings
+    from cosim.soil_model import fe_nodes
     from fe_domain.output import FieldWriter
     from fe_domain.static import StaticSolver
     case, em = prepared.case, prepared.case.embedded
@@ -61,7 +62,7 @@ def run(prepared):
     gauges = lining_gauges(case, solid)
     static.solve(0.0)                                    # at rest: the ramp has not started
     at_rest = [sections(gauge) for gauge in gauges]
-    rest_displacement = solid.displacement.copy()
+    rest_displacement = fe_nodes(solid)[1]              # rank 0: the FE nodes in mesh-input order
     fields = FieldWriter(solid, out_dir / "fields") if is_root() else None
     rows = CsvSeries(out_dir / "series.csv", ["time", *lining_columns(em.linings), "row"]) if is_root() else None
     ramp.start = 0.0
@@ -73,6 +74,7 @@ def run(prepared):
         if rows is not None:
             rows.append([*row, k])
             fields.write()
+    coordinates, end_displacement = fe_nodes(solid)
     if not is_root():
         return
     rows.close()
@@ -80,9 +82,8 @@ def run(prepared):
     for lining, gauge, rest in zip(em.linings, gauges, at_rest, strict=True):
         write_sections(out_dir / f"{lining.volume}_sections.csv", rest, sections(gauge))
     if em.ground:
-        motion = (solid.node_coordinates[:solid.n_owned_nodes],
-                  (solid.displacement - rest_displacement)[:solid.n_owned_nodes])
-        write_trough(split.surfaces[em.ground], case.dem.gravity, out_dir / "settlement_trough.csv", motion)
+        write_trough(split.surfaces[em.ground], case.dem.gravity, out_dir / "settlement_trough.csv",
+                     (coordinates, end_displacement - rest_displacement))
     cells = solid.mesh.topology.index_map(3).size_local
     radii = {lining.volume: gauge.ring.outer_radius for lining, gauge in zip(em.linings, gauges, strict=True)}
     ground = ground_height(split.surfaces[em.ground], case.dem.gravity) if em.ground else None
