@@ -104,7 +104,7 @@ def main(argv=None):
         if args.command == "calibrate":
             return _calibrate(args)
         if args.command == "check" and _is_calibration_file(args.case):
-            from cosim.case import load_calibration
+            from cosim.case.calibration import load_calibration
             load_calibration(args.case)
             say(f"{args.case}: OK (a calibration file: run it with `cosim calibrate {args.case}`)")
             return 0
@@ -258,7 +258,7 @@ def _is_calibration_file(path):
 
 def _calibrate(args):
     """``cosim calibrate``: one process; the calibration file and its cases checked first."""
-    from cosim.case import load_calibration
+    from cosim.case.calibration import load_calibration
     from cosim.lab.calibrate import run_calibration
     from cosim.outputs import check_output_folder, mpi_comm
     if mpi_comm().size > 1:

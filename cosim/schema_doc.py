@@ -1,6 +1,6 @@
 """The case-file schema as a list of keys, and as the manual's reference page.
 
-:func:`walk` visits every key of the pydantic models in :mod:`cosim.case` (tables and
+:func:`walk` visits every key of the pydantic models in :mod:`cosim.case.schema` (tables and
 their keys, depth first, in declaration order). ``cosim schema`` prints it as text;
 :func:`render_markdown` renders it as docs/reference/case-file.md, one table per TOML
 table with a row per key (type, unit, default, allowed values, meaning). Regenerate the
@@ -23,7 +23,9 @@ import annotated_types as at
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
-from cosim.case import SECTIONS_OF_KIND, CalibrationFile, Case, _inner_model
+from cosim.case.calibration import CalibrationFile
+from cosim.case.messages import inner_model
+from cosim.case.schema import SECTIONS_OF_KIND, Case
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "reference" / "case-file.md"
 
@@ -44,7 +46,7 @@ class Entry:
 def walk(model=Case, prefix=""):
     """Every key of ``model`` and of the tables inside it, depth first, as :class:`Entry`."""
     for name, field in model.model_fields.items():
-        inner = _inner_model(field.annotation)
+        inner = inner_model(field.annotation)
         key = f"{prefix}{name}"
         if inner is not None:
             yield Entry(key, field, inner, "list" in str(field.annotation))
@@ -272,11 +274,11 @@ def render_markdown():
     out = [
         "# Case-file reference",
         "",
-        "<!-- Generated from the pydantic models in cosim/case.py by `make docs-reference`",
+        "<!-- Generated from the pydantic models in cosim/case/schema.py by `make docs-reference`",
         "     (cosim/schema_doc.py); do not edit by hand. -->",
         "",
         "Every key a case file may hold, table by table, from the schema that validates it "
-        "(`cosim/case.py`); `cosim schema` prints the same list in a terminal. A key not listed "
+        "(`cosim/case/schema.py`); `cosim schema` prints the same list in a terminal. A key not listed "
         "here is an error, as is a value of another type (TOML types are strict: `1` is not a "
         "string, `\"yes\"` not a boolean; a float key accepts an integer) or outside the bounds "
         "given. *Unit* `-` means dimensionless; *not set* means the key is optional and the "

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim.apps.direct_shear import ShearTest, materials
-from cosim.case import Case
+from cosim.case.schema import Case
 from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
 from cosim.lab.shear_report import plot_run, summarize
 from de_domain.deposition import (

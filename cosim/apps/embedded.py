@@ -91,7 +91,7 @@ class LoadingRamp:
 
 def mesh_file(case, case_path):
     """The model's path: relative to the case file, else in meshes/."""
-    from cosim.case import resolve_path
+    from cosim.case.loading import resolve_path
     given = resolve_path(case_path, case.embedded.mesh)
     return given if Path(given).exists() else case.embedded.mesh
 
@@ -102,7 +102,7 @@ def prepare(case, case_path, out_dir, resume):
     the FE, rollers are planes normal to an axis, the grain volumes are at least
     GRAINS_ACROSS of the largest grains thick."""
     from cosim.apps import on_root
-    from cosim.case import GRAINS_ACROSS
+    from cosim.case.validation import GRAINS_ACROSS
     from cosim.specimen import curve_of
     from de_domain.zone_fill import thickness
     from fe_domain.mesh import MeshError
@@ -158,7 +158,7 @@ def read_packing(case, case_path, split):
     must lie in a grain volume, or within its radius of a free surface (a CaseError names the
     first that does not)."""
     from cosim.apps.dem import warn_overlaps
-    from cosim.case import resolve_path
+    from cosim.case.loading import resolve_path
     from de_domain.packing import load_packing
     from de_domain.zone_fill import inside_tets
     sp = case.specimen

@@ -95,7 +95,7 @@ def as_embedded(case):
     meshes/strip_footing.geo, volume ``zone`` grains and ``soil`` FE (grains in the all-DEM
     twin), the bottom fixed and rough, the sides on rollers and frictionless, the footing a rigid
     body seated on the grains and pushed down."""
-    from cosim.case import EmbeddedSection, EmbeddedSurface, EmbeddedVolume, RigidBody
+    from cosim.case.schema import EmbeddedSection, EmbeddedSurface, EmbeddedVolume, RigidBody
     ft, soil, zone = case.footing, case.soil, case.zone
     geometry = Geometry.of(case)
     section = EmbeddedSection(

@@ -2,7 +2,7 @@
 triaxial) gives target results (thesis §1.4: contact stiffness, friction and rolling resistance cannot be
 measured; they are fitted so that a simulated lab test matches the real one).
 
-A calibration file (``cosim.case.CalibrationFile``) names a direct_shear or triaxial case,
+A calibration file (``cosim.case.calibration.CalibrationFile``) names a direct_shear or triaxial case,
 targets (a quantity of ``summary.json`` at a stated σ_n or σ₃, with a tolerance) and up to
 four parameters of the sand material with bounds. The search, step by step:
 
@@ -250,7 +250,7 @@ def calibrated_case_text(case_path, overrides, note):
 
     import tomli_w
 
-    from cosim.case import apply_overrides, resolve_path
+    from cosim.case.loading import apply_overrides, resolve_path
     raw = apply_overrides(case_path, tomllib.loads(Path(case_path).read_text()), overrides)
     specimen = raw.get("specimen", {})
     if "file" in specimen:
@@ -322,7 +322,7 @@ def plot_history(path, spec, outcome):
 
 def run_calibration(calibration_path, out_root, confirm_runs=True):
     """``cosim calibrate``: validate, search, confirm, report; returns the Calibration."""
-    from cosim.case import load_calibration
+    from cosim.case.calibration import load_calibration
     spec, case_path, confirm_path = load_calibration(calibration_path)
     out_root = Path(out_root)
     outcome = calibrate(spec, LabEvaluator(case_path, out_root / "search"), out_root / "evaluations.csv")

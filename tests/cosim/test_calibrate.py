@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.case import CalibrationFile
+from cosim.case.calibration import CalibrationFile
 from cosim.cli import main
 from cosim.lab.calibrate import calibrate
 
