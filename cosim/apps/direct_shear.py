@@ -45,30 +45,16 @@ the mean plate contact stiffness.
 """
 from __future__ import annotations
 
-import json
 import math
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from cosim.errors import CaseError
-from cosim.outputs import (
-    CsvSeries,
-    ProgressLine,
-    atomic_write_text,
-    is_root,
-    load_lab_checkpoint,
-    mpi_comm,
-    particle_frames,
-    save_lab_checkpoint,
-    say,
-    write_run_metadata,
-)
+from cosim.lab.run import LabTest, Loading, check_resume, run_lab_test
+from cosim.outputs import is_root
 from cosim.specimen import SpecimenBox, check_grain_time_step, lab_specimen, read_lab_inputs
 
-CHECKPOINT = "checkpoint.npz"
 SHEAR_STATE = "shear_state.json"
 SHEAR_START = "shear_start.npz"  # every grain's position when shearing began (the shear-band pictures)
 # averaged over the servo updates of a CSV row
@@ -96,10 +82,8 @@ def prepare(case, case_path, out_dir, resume):
         return None
     ds = case.direct_shear
     out_dir = Path(out_dir)
-    if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / SHEAR_STATE).exists()):
-        raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
-                        "no shear checkpoint in the output folder (checkpoints start with the shearing); "
-                        "run without --resume")
+    if resume:
+        check_resume(case_path, out_dir, ShearTest, "shear")
     built, r_min = read_lab_inputs(case, case_path, ds.box_length, ds.box_length)
     mats, sand, _, _ = materials(case)
     check_grain_time_step(case, case_path, mats, sand, r_min)
@@ -116,10 +100,12 @@ def make_specimen(case, built, out_dir, cache=None, comm=None):
 
 
 # --------------------------------------------------------------------------- 2. shear box
-class ShearTest:
-    """Engine + split box + servo for one direct shear test (steps 2–4 of the module docstring)."""
+class ShearTest(LabTest):
+    """Engine + split box + servo for one direct shear test (steps 2–4 of the module docstring),
+    run by :func:`cosim.lab.run.run_lab_test`."""
 
     SERVO_STATE = ("stiffness", "stiffness_step", "v_integral", "shear_velocity")
+    PHASE, STATE_FILE, COLUMNS, SAMPLED = "shear", SHEAR_STATE, COLUMNS, len(SUMS)
 
     def __init__(self, case, engine, height, x0=None):
         """``engine``: walls [bottom, top plate], facets [lower half, upper half] (see
@@ -264,180 +250,114 @@ class ShearTest:
             f"unbalanced force {unbalanced_force_ratio(self.engine):.3g}")
         return n
 
+    # ---------------------------------------------------------------- 4. the shearing (cosim.lab.run)
+    specimen = staticmethod(make_specimen)
 
-def _record(test, sums, n, z0):
-    from de_domain.diagnostics import coordination_number, unbalanced_force_ratio
-    e1, e2 = test.sphere_void_ratios()
-    lw_zz, lw_xz = test.love_weber_slab()
-    return [test.engine.time, test.displacement, sums[0] / n, sums[1] / n, float(test.plate.point[2]) - z0,
-            test.void_ratio(), e1, e2, sums[2] / n, lw_zz, lw_xz, unbalanced_force_ratio(test.engine),
-            coordination_number(test.engine), test.shear_velocity, test.engine.step_count, sums[3] / n,
-            sums[4] / n]
+    @classmethod
+    def restored(cls, case, engine, state):
+        test = cls(case, engine, state["height0"], state["x0"])
+        for k in cls.SERVO_STATE:
+            setattr(test, k, state[k])
+        return test
+
+    def saved_state(self):
+        return {**{k: getattr(self, k) for k in self.SERVO_STATE}, "x0": self.x0.tolist(), "height0": self.height0}
+
+    def describe(self, height):
+        ds = self.ds
+        return (f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
+                f"{self.radii.size} grains (d50 = {self.d50 * 1e3:.2f} mm), dt = {self.engine.dt:.3e} s")
+
+    def resumed_text(self):
+        return f", δ = {self.displacement * 1e3:.3f} mm"
+
+    def start_state(self):
+        return {"z0": float(self.plate.point[2]), "servo_errors": []}
+
+    def plan(self, loop, out_dir, resume):
+        from cosim.lab.shear_box import inertial_number, velocity_for_inertial_number
+        ds = self.ds
+        self.velocity = ds.shear_velocity or velocity_for_inertial_number(ds.inertial_number, self.height0, self.d50,
+                                                                          self.density, ds.normal_stress)
+        self.inertial = inertial_number(self.velocity, self.height0, self.d50, self.density, ds.normal_stress)
+        self.band_pictures = _band_pictures(self.case, out_dir, loop, self, resume)
+        # the ramp from 2 % of v over ramp_distance takes ln(50) ramp_distance / v
+        total_steps = loop["consolidation_steps"] + int(math.ceil(
+            (ds.shear_distance + (math.log(50.0) - 1.0) * ds.ramp_distance) / (self.velocity * self.engine.dt)))
+        return Loading(ds.shear_distance, total_steps, ds.rows,
+                       f"shearing at v = {self.velocity:.4g} m/s (inertial number I = {self.inertial:.2e}) to "
+                       f"δ = {ds.shear_distance * 1e3:.2f} mm: about {total_steps - loop['consolidation_steps']} steps")
+
+    def measure(self, loop):
+        return self.displacement
+
+    def advance(self, loop):
+        ds = self.ds
+        ramp = min(1.0, max(0.02, self.displacement / ds.ramp_distance)) if ds.ramp_distance > 0 else 1.0
+        self.shear_velocity = self.velocity * ramp
+        self.step(ds.normal_stress)
+
+    def sample(self):
+        return (self.shear_stress(), self.normal_stress(), self.shear_stress_lower(), self.plate_shear_force(),
+                self.stiffness)
+
+    def row(self, means, loop):
+        from de_domain.diagnostics import coordination_number, unbalanced_force_ratio
+        e1, e2 = self.sphere_void_ratios()
+        lw_zz, lw_xz = self.love_weber_slab()
+        ds, delta = self.ds, self.displacement
+        row = [self.engine.time, delta, means[0], means[1], float(self.plate.point[2]) - loop["z0"],
+               self.void_ratio(), e1, e2, means[2], lw_zz, lw_xz, unbalanced_force_ratio(self.engine),
+               coordination_number(self.engine), self.shear_velocity, self.engine.step_count, means[3], means[4]]
+        if delta > ds.ramp_distance:
+            loop["servo_errors"].append(abs(row[3] - ds.normal_stress) / ds.normal_stress)
+        return row
+
+    def after_update(self, value, loop):
+        self.band_pictures(value)  # collective when distributed
+
+    def report(self, data, loop, out_dir):
+        from cosim.lab.shear_box import corrected_area
+        from cosim.lab.shear_report import plot_run, summarize
+        ds, servo_errors = self.ds, loop["servo_errors"]
+        summary = summarize(data["shear_displacement"], data["shear_stress"], data["normal_stress"],
+                            data["vertical_displacement"], ds.residual_fraction)
+        after = data["shear_displacement"] > ds.ramp_distance
+        ratio = lambda a, b: float(np.mean(a[after]) / np.mean(b[after]))  # noqa: E731
+        stiffness = np.mean(data["plate_contact_stiffness"][after])
+        summary.update({
+            "sample_height": self.height0, "normal_stress": ds.normal_stress, "shear_velocity": self.velocity,
+            "inertial_number": self.inertial,
+            "void_ratio_sphere_045h_end": float(data["void_ratio_sphere_045h"][-1]),
+            "void_ratio_sphere_020h_end": float(data["void_ratio_sphere_020h"][-1]),
+            "servo_max_relative_error": float(max(servo_errors)) if servo_errors else None,
+            "servo_mean_relative_error": float(np.mean(servo_errors)) if servo_errors else None,
+            "servo": ds.servo,
+            "servo_gain": ds.servo_gain if ds.servo == "stiffness" else ds.servo_fixed_gain or ds.servo_max_velocity,
+            "servo_gain_unit": "fraction of the stress error per update" if ds.servo == "stiffness"
+                               else "m/s per unit relative stress error",
+            "plate_contact_stiffness_mean": float(stiffness),
+            "servo_fixed_gain_stable_below": float(2.0 * ds.normal_stress * np.mean(corrected_area(
+                ds.box_length, data["shear_displacement"][after])) / (stiffness * self.engine.dt * ds.servo_interval)),
+            "plate_shear_force_over_total": float(np.mean(data["plate_shear_force"][after]) / np.mean(
+                data["shear_stress"][after] * corrected_area(ds.box_length, data["shear_displacement"][after]))),
+            "love_weber_normal_over_wall": ratio(data["lw_normal_stress"], data["normal_stress"]),
+            "love_weber_shear_over_wall": ratio(np.abs(data["lw_shear_stress"]), data["shear_stress"]),
+            "shear_lower_over_upper": ratio(data["shear_stress_lower"], data["shear_stress"]),
+            "shear_band": loop["shear_band"],
+        })
+        plot_run(data, out_dir, f"{self.case.case.name}: σ_n = {ds.normal_stress / 1e3:.0f} kPa")
+        return summary
+
+    def summary_text(self, summary):
+        return summary_text(summary)
 
 
 # --------------------------------------------------------------------------- the run
 def run(prepared, specimen_cache=None):
     """The test. Under ``mpirun -n N`` (N > 1) the DEM of the specimen generation, the
     consolidation and the shear is spread over all ranks (bit-identical to one rank)."""
-    case = prepared.case
-    write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
-    comm = mpi_comm()
-    if comm.size > 1 or is_root():
-        _run_test(case, prepared.out_dir, prepared.built, specimen_cache, prepared.resume,
-                  comm if comm.size > 1 else None)
-    comm.Barrier()
-
-
-def _save_checkpoint(out_dir, test, loop):
-    """Engine checkpoint + the servo and loop state (JSON), both written to temporary
-    files and renamed; the JSON names the step it belongs to."""
-    state = {**{k: getattr(test, k) for k in ShearTest.SERVO_STATE}, **loop,
-             "x0": test.x0.tolist(), "height0": test.height0}
-    save_lab_checkpoint(out_dir, test.engine, SHEAR_STATE, state)  # collective when distributed
-
-
-def _load_checkpoint(case, out_dir, comm=None):
-    engine, state = load_lab_checkpoint(out_dir, SHEAR_STATE, comm)
-    test = ShearTest(case, engine, state["height0"], state["x0"])
-    for k in ShearTest.SERVO_STATE:
-        setattr(test, k, state[k])
-    return test, state
-
-
-def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
-    """The test on one rank (``comm`` None) or, collectively, on all ranks of ``comm``
-    (files written by rank 0)."""
-    from cosim.lab.shear_box import corrected_area, inertial_number, velocity_for_inertial_number
-    from cosim.lab.shear_report import plot_run, read_series, summarize
-    name, ds = case.case.name, case.direct_shear
-    log = lambda text: say(f"[{name}] {text}")  # noqa: E731
-    t_start = time.perf_counter()
-
-    if resume:
-        test, loop = _load_checkpoint(case, out_dir, comm)
-        engine = test.engine
-        specimen_info = loop["specimen_info"]
-        log(f"resumed at step {engine.step_count}, δ = {test.displacement * 1e3:.3f} mm")
-    else:
-        # 1. specimen
-        if comm is not None:
-            built = comm.bcast(built, root=0)  # prepare() read the inputs on rank 0
-        positions, radii, height, specimen_info = make_specimen(case, built, out_dir, specimen_cache, comm)
-        # 2. shear box
-        test = ShearTest.build(case, positions, radii, height, comm)
-        engine = test.engine
-        ranks = f", DEM on {comm.size} MPI ranks" if comm is not None else ""
-        log(f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
-            f"{test.radii.size} grains (d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s{ranks}")
-        # 3. consolidation
-        t_consolidation = time.perf_counter()
-        consolidation_steps = test.consolidate(log)
-        loop = {"specimen_info": specimen_info, "consolidation_steps": consolidation_steps,
-                "e_consolidated": test.void_ratio(), "z0": float(test.plate.point[2]), "next_row": 0.0,
-                "sums": [0.0] * len(SUMS), "n": 0, "servo_errors": [], "next_frame": 0.0,
-                "wall_clock_consolidation_s": time.perf_counter() - t_consolidation, "wall_clock_shear_s": 0.0,
-                "wall_clock_before_s": 0.0}
-    height, z0 = test.height0, loop["z0"]
-
-    # 4. shearing
-    v = ds.shear_velocity or velocity_for_inertial_number(ds.inertial_number, height, test.d50, test.density,
-                                                          ds.normal_stress)
-    inertial = inertial_number(v, height, test.d50, test.density, ds.normal_stress)
-    # the ramp from 2 % of v over ramp_distance takes ln(50) ramp_distance / v
-    total_steps = loop["consolidation_steps"] + int(math.ceil(
-        (ds.shear_distance + (math.log(50.0) - 1.0) * ds.ramp_distance) / (v * engine.dt)))
-    log(f"shearing at v = {v:.4g} m/s (inertial number I = {inertial:.2e}) to δ = {ds.shear_distance * 1e3:.2f} mm: "
-        f"about {total_steps - loop['consolidation_steps']} steps")
-    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None) \
-        if is_root() else None
-    frames = particle_frames(case.output.vtk, out_dir, loop, ds.shear_distance / 10, engine.time if resume else None)
-    band_pictures = _band_pictures(case, out_dir, loop, test, resume)
-    if not resume:
-        frames(engine, 0)
-    progress = ProgressLine(name, total_steps, case.output.progress_interval, first_step=engine.step_count)
-    row_spacing = ds.shear_distance / ds.rows
-    next_row, n, servo_errors = loop["next_row"], loop["n"], loop["servo_errors"]
-    sums = np.zeros(len(SUMS))
-    sums[:len(loop["sums"])] = loop["sums"]  # (a checkpoint of an older version kept fewer)
-    t0 = time.perf_counter()
-    last_checkpoint = t0
-    while True:
-        delta = test.displacement
-        ramp = min(1.0, max(0.02, delta / ds.ramp_distance)) if ds.ramp_distance > 0 else 1.0
-        test.shear_velocity = v * ramp
-        test.step(ds.normal_stress)
-        sums += (test.shear_stress(), test.normal_stress(), test.shear_stress_lower(), test.plate_shear_force(),
-                 test.stiffness)
-        n += 1
-        delta = test.displacement
-        if delta >= next_row or delta >= ds.shear_distance:
-            row = _record(test, sums, n, z0)  # collective when distributed
-            if series is not None:
-                series.append(row)
-            if delta > ds.ramp_distance:
-                servo_errors.append(abs(row[3] - ds.normal_stress) / ds.normal_stress)
-            sums, n = np.zeros(len(SUMS)), 0
-            next_row += row_spacing
-            frames(engine, delta)
-        band_pictures(delta)  # collective when distributed
-        progress.update(engine.step_count, engine.time)
-        if delta >= ds.shear_distance:
-            break
-        due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
-        if due if comm is None else comm.bcast(due, root=0):  # rank 0's clock decides for all
-            now = time.perf_counter()
-            loop.update(next_row=next_row, sums=sums.tolist(), n=n, servo_errors=servo_errors,
-                        wall_clock_shear_s=loop["wall_clock_shear_s"] + now - t0,
-                        wall_clock_before_s=loop["wall_clock_before_s"] + now - t_start)
-            t0 = t_start = last_checkpoint = now
-            _save_checkpoint(out_dir, test, loop)
-    progress.update(engine.step_count, engine.time, force=True)
-    if not is_root():
-        return None
-    series.close()
-    shear_wall_clock = loop["wall_clock_shear_s"] + time.perf_counter() - t0
-    consolidation_steps, e_consolidated = loop["consolidation_steps"], loop["e_consolidated"]
-
-    # 5. report
-    data = read_series(out_dir / "series.csv")
-    summary = summarize(data["shear_displacement"], data["shear_stress"], data["normal_stress"],
-                        data["vertical_displacement"], ds.residual_fraction)
-    after = data["shear_displacement"] > ds.ramp_distance
-    lw_ratio = lambda a, b: float(np.mean(a[after]) / np.mean(b[after]))  # noqa: E731
-    summary.update({
-        "case": name, "grains": int(test.radii.size), "d50": test.d50, "sample_height": height,
-        "normal_stress": ds.normal_stress, "shear_velocity": v, "inertial_number": inertial, "dt": engine.dt,
-        "steps_consolidation": consolidation_steps, "steps_shear": int(engine.step_count - consolidation_steps),
-        "void_ratio_consolidated": e_consolidated, "void_ratio_end": float(data["void_ratio"][-1]),
-        "void_ratio_sphere_045h_end": float(data["void_ratio_sphere_045h"][-1]),
-        "void_ratio_sphere_020h_end": float(data["void_ratio_sphere_020h"][-1]),
-        "servo_max_relative_error": float(max(servo_errors)) if servo_errors else None,
-        "servo_mean_relative_error": float(np.mean(servo_errors)) if servo_errors else None,
-        "servo": ds.servo,
-        "servo_gain": ds.servo_gain if ds.servo == "stiffness" else ds.servo_fixed_gain or ds.servo_max_velocity,
-        "servo_gain_unit": "fraction of the stress error per update" if ds.servo == "stiffness"
-                           else "m/s per unit relative stress error",
-        "plate_contact_stiffness_mean": float(np.mean(data["plate_contact_stiffness"][after])),
-        "servo_fixed_gain_stable_below": float(2.0 * ds.normal_stress * np.mean(corrected_area(
-            ds.box_length, data["shear_displacement"][after])) / (np.mean(data["plate_contact_stiffness"][after])
-                                                                 * engine.dt * ds.servo_interval)),
-        "plate_shear_force_over_total": float(np.mean(data["plate_shear_force"][after])
-                                              / np.mean(data["shear_stress"][after] * corrected_area(
-                                                  ds.box_length, data["shear_displacement"][after]))),
-        "love_weber_normal_over_wall": lw_ratio(data["lw_normal_stress"], data["normal_stress"]),
-        "love_weber_shear_over_wall": lw_ratio(np.abs(data["lw_shear_stress"]), data["shear_stress"]),
-        "shear_lower_over_upper": lw_ratio(data["shear_stress_lower"], data["shear_stress"]),
-        "wall_clock_consolidation_s": loop["wall_clock_consolidation_s"], "wall_clock_shear_s": shear_wall_clock,
-        "wall_clock_total_s": loop["wall_clock_before_s"] + time.perf_counter() - t_start,
-        "shear_band": loop["shear_band"],
-        **{k: v for k, v in specimen_info.items() if k != "generation_log"},
-    })
-    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
-    atomic_write_text(out_dir / "summary.txt", summary_text(summary))
-    plot_run(data, out_dir, f"{name}: σ_n = {ds.normal_stress / 1e3:.0f} kPa")
-    for line in summary_text(summary).splitlines():
-        log(line)
-    return summary
+    run_lab_test(prepared, ShearTest, specimen_cache)
 
 
 def summary_text(s):

@@ -39,29 +39,15 @@ ratios and the servo error. ``triaxial.png`` plots q and ε_v against ε₁.
 """
 from __future__ import annotations
 
-import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
-from cosim.errors import CaseError
-from cosim.outputs import (
-    CsvSeries,
-    ProgressLine,
-    atomic_write_text,
-    is_root,
-    load_lab_checkpoint,
-    mpi_comm,
-    particle_frames,
-    save_lab_checkpoint,
-    say,
-    write_run_metadata,
-)
+from cosim.lab.run import LabTest, Loading, check_resume, run_lab_test
+from cosim.outputs import is_root
 from cosim.specimen import SpecimenBox, check_grain_time_step, lab_specimen, read_lab_inputs
 
-CHECKPOINT = "checkpoint.npz"
 STATE = "triaxial_state.json"
 MOVING = (1, 3, 5)  # wall indices: x = L_x, y = L_y, top
 STIFFNESS_REFRESH = 25  # steps between updates of a servo wall's contact stiffness
@@ -86,10 +72,8 @@ def prepare(case, case_path, out_dir, resume):
         return None
     tx = case.triaxial
     out_dir = Path(out_dir)
-    if resume and not ((out_dir / CHECKPOINT).exists() and (out_dir / STATE).exists()):
-        raise CaseError(case_path, "--resume", str(out_dir / CHECKPOINT),
-                        "no triaxial checkpoint in the output folder (checkpoints start with the compression); "
-                        "run without --resume")
+    if resume:
+        check_resume(case_path, out_dir, TriaxialTest, "triaxial")
     built, r_min = read_lab_inputs(case, case_path, tx.size, tx.size)
     mats, sand, _, _ = materials(case)
     check_grain_time_step(case, case_path, mats, sand, r_min)
@@ -104,10 +88,12 @@ def make_specimen(case, built, out_dir, cache=None, comm=None):
 
 
 # --------------------------------------------------------------------------- the cell
-class TriaxialTest:
-    """Engine + six walls + the servo of the three moving walls (module docstring, steps 2–4)."""
+class TriaxialTest(LabTest):
+    """Engine + six walls + the servo of the three moving walls (module docstring, steps 2–4),
+    run by :func:`cosim.lab.run.run_lab_test`."""
 
     SERVO_STATE = ("stiffness", "stiffness_step", "v_integral")
+    PHASE, STATE_FILE, COLUMNS, SAMPLED = "compression", STATE, COLUMNS, 3
 
     def __init__(self, case, engine):
         from cosim.lab.shear_box import mass_median_diameter
@@ -204,145 +190,90 @@ class TriaxialTest:
             f"{np.array2string(self.stresses(), precision=4)} Pa")
         return n
 
+    # ---------------------------------------------------------------- 4. the compression (cosim.lab.run)
+    specimen = staticmethod(make_specimen)
+
+    @classmethod
+    def restored(cls, case, engine, state):
+        test = cls(case, engine)
+        for k in cls.SERVO_STATE:
+            setattr(test, k, state[k])
+        return test
+
+    def saved_state(self):
+        return {k: getattr(self, k) for k in self.SERVO_STATE}
+
+    def describe(self, height):
+        size = self.tx.size
+        return (f"cell {size * 1e3:.1f} x {size * 1e3:.1f} x {height * 1e3:.2f} mm, {self.radii.size} grains "
+                f"(d50 = {self.d50 * 1e3:.2f} mm), dt = {self.engine.dt:.3e} s")
+
+    def start_state(self):
+        lengths = self.lengths()
+        return {"height0": float(lengths[2]), "volume0": float(np.prod(lengths))}
+
+    def plan(self, loop, out_dir, resume):
+        tx, rate = self.tx, self.rate
+        self.velocity = rate * loop["height0"]
+        # the ramp from 2 % of the rate over ramp_strain takes ln(50) ramp_strain / rate
+        total_steps = loop["consolidation_steps"] + int(math.ceil(
+            (tx.axial_strain + (math.log(50.0) - 1.0) * tx.ramp_strain) / (rate * self.engine.dt)))
+        return Loading(tx.axial_strain, total_steps, tx.rows,
+                       f"compressing at eps_dot = {rate:.4g} 1/s (top wall {self.velocity:.4g} m/s, inertial number "
+                       f"{self.inertial_number():.2e}) to eps_1 = {tx.axial_strain}: "
+                       f"about {total_steps - loop['consolidation_steps']} steps")
+
+    def inertial_number(self):
+        return self.rate * self.d50 * math.sqrt(self.density / self.tx.cell_pressure)
+
+    def measure(self, loop):
+        """ε₁ = (H₀ − H)/H₀."""
+        return (loop["height0"] - self.lengths()[2]) / loop["height0"]
+
+    def advance(self, loop):
+        tx = self.tx
+        ramp = min(1.0, max(0.02, self.measure(loop) / tx.ramp_strain)) if tx.ramp_strain > 0 else 1.0
+        self.step(axial_velocity=self.velocity * ramp)
+
+    def sample(self):
+        return self.stresses()
+
+    def row(self, means, loop):
+        """The wall stresses averaged over a row's updates, the strains and the state now."""
+        from de_domain.diagnostics import coordination_number, unbalanced_force_ratio
+        sx, sy, s1 = means
+        s3 = 0.5 * (sx + sy)
+        lengths = self.lengths()
+        e1 = (loop["height0"] - lengths[2]) / loop["height0"]
+        ev = (loop["volume0"] - float(np.prod(lengths))) / loop["volume0"]
+        return [self.engine.time, e1, ev, s1, sx, sy, s3, s1 - s3, (s1 + 2.0 * s3) / 3.0, (s1 - s3) / (s1 + s3),
+                self.void_ratio(), unbalanced_force_ratio(self.engine), coordination_number(self.engine),
+                self.engine.step_count]
+
+    def after_update(self, value, loop):
+        """Nothing: the triaxial test draws its pictures at the end."""
+
+    def report(self, data, loop, out_dir):
+        tx = self.tx
+        summary = summarize(data, tx.residual_fraction)
+        summary.update({"size": tx.size, "cell_pressure": tx.cell_pressure, "strain_rate": self.rate,
+                        "inertial_number": self.inertial_number(), **servo_errors(data, tx.cell_pressure)})
+        plot_run(data, out_dir / "triaxial.png", f"{self.case.case.name}: σ₃ = {tx.cell_pressure / 1e3:g} kPa")
+        return summary
+
+    def summary_text(self, summary):
+        return summary_text(summary)
+
 
 # --------------------------------------------------------------------------- the run
 def run(prepared, specimen_cache=None):
     """The test; under ``mpirun -n N`` the DEM is spread over all ranks."""
-    case = prepared.case
-    write_run_metadata(prepared.out_dir, prepared.case_path, prepared.resolved, case.case.seed)
-    comm = mpi_comm()
-    if comm.size > 1 or is_root():
-        _run_test(case, prepared.out_dir, prepared.built, specimen_cache, prepared.resume,
-                  comm if comm.size > 1 else None)
-    comm.Barrier()
-
-
-def _save_checkpoint(out_dir, test, loop):
-    state = {**{k: getattr(test, k) for k in TriaxialTest.SERVO_STATE}, **loop}
-    save_lab_checkpoint(out_dir, test.engine, STATE, state)  # collective when distributed
-
-
-def _load_checkpoint(case, out_dir, comm=None):
-    engine, state = load_lab_checkpoint(out_dir, STATE, comm)
-    test = TriaxialTest(case, engine)
-    for k in TriaxialTest.SERVO_STATE:
-        setattr(test, k, state[k])
-    return test, state
-
-
-def _record(test, sums, n, loop):
-    """One CSV row: the wall stresses averaged over the ``n`` updates in ``sums``."""
-    from de_domain.diagnostics import coordination_number, unbalanced_force_ratio
-    sx, sy, s1 = sums / n
-    s3 = 0.5 * (sx + sy)
-    lengths = test.lengths()
-    e1 = (loop["height0"] - lengths[2]) / loop["height0"]
-    ev = (loop["volume0"] - float(np.prod(lengths))) / loop["volume0"]
-    return [test.engine.time, e1, ev, s1, sx, sy, s3, s1 - s3, (s1 + 2.0 * s3) / 3.0, (s1 - s3) / (s1 + s3),
-            test.void_ratio(), unbalanced_force_ratio(test.engine), coordination_number(test.engine),
-            test.engine.step_count]
+    run_lab_test(prepared, TriaxialTest, specimen_cache)
 
 
 def strain_rate_of(tx, d50, density):
     """ε̇: ``strain_rate``, or from the inertial number I = ε̇ d₅₀ √(ρ/σ₃)."""
     return tx.strain_rate or tx.inertial_number / (d50 * math.sqrt(density / tx.cell_pressure))
-
-
-def _run_test(case, out_dir, built, specimen_cache, resume=False, comm=None):
-    name, tx = case.case.name, case.triaxial
-    log = lambda text: say(f"[{name}] {text}")  # noqa: E731
-    t_start = time.perf_counter()
-    if resume:
-        test, loop = _load_checkpoint(case, out_dir, comm)
-        engine = test.engine
-        log(f"resumed at step {engine.step_count}")
-    else:
-        if comm is not None:
-            built = comm.bcast(built, root=0)
-        positions, radii, height, specimen_info = make_specimen(case, built, out_dir, specimen_cache, comm)
-        test = TriaxialTest.build(case, positions, radii, height, comm)
-        engine = test.engine
-        log(f"cell {tx.size * 1e3:.1f} x {tx.size * 1e3:.1f} x {height * 1e3:.2f} mm, {test.radii.size} grains "
-            f"(d50 = {test.d50 * 1e3:.2f} mm), dt = {engine.dt:.3e} s"
-            + (f", DEM on {comm.size} MPI ranks" if comm is not None else ""))
-        t_consolidation = time.perf_counter()
-        consolidation_steps = test.consolidate(log)
-        lengths = test.lengths()
-        loop = {"specimen_info": specimen_info, "consolidation_steps": consolidation_steps,
-                "e_consolidated": test.void_ratio(), "height0": float(lengths[2]), "volume0": float(np.prod(lengths)),
-                "next_row": 0.0, "sums": [0.0, 0.0, 0.0], "n": 0, "next_frame": 0.0,
-                "wall_clock_consolidation_s": time.perf_counter() - t_consolidation, "wall_clock_compression_s": 0.0,
-                "wall_clock_before_s": 0.0}
-
-    rate = test.rate
-    velocity = rate * loop["height0"]
-    # the ramp from 2 % of the rate over ramp_strain takes ln(50) ramp_strain / rate
-    total_steps = loop["consolidation_steps"] + int(math.ceil(
-        (tx.axial_strain + (math.log(50.0) - 1.0) * tx.ramp_strain) / (rate * engine.dt)))
-    log(f"compressing at eps_dot = {rate:.4g} 1/s (top wall {velocity:.4g} m/s, inertial number "
-        f"{rate * test.d50 * math.sqrt(test.density / tx.cell_pressure):.2e}) to eps_1 = {tx.axial_strain}: "
-        f"about {total_steps - loop['consolidation_steps']} steps")
-    series = CsvSeries(out_dir / "series.csv", COLUMNS, resume_time=engine.time if resume else None) \
-        if is_root() else None
-    frames = particle_frames(case.output.vtk, out_dir, loop, tx.axial_strain / 10, engine.time if resume else None)
-    if not resume:
-        frames(engine, 0.0)
-    progress = ProgressLine(name, total_steps, case.output.progress_interval, first_step=engine.step_count)
-    spacing = tx.axial_strain / tx.rows
-    sums, n = np.array(loop["sums"]), loop["n"]
-    t0 = last_checkpoint = time.perf_counter()
-    strain = (loop["height0"] - test.lengths()[2]) / loop["height0"]
-    while True:
-        ramp = min(1.0, max(0.02, strain / tx.ramp_strain)) if tx.ramp_strain > 0 else 1.0
-        test.step(axial_velocity=velocity * ramp)
-        sums += test.stresses()
-        n += 1
-        strain = (loop["height0"] - test.lengths()[2]) / loop["height0"]
-        done = strain >= tx.axial_strain
-        if strain >= loop["next_row"] or done:
-            row = _record(test, sums, n, loop)  # collective when distributed
-            if series is not None:
-                series.append(row)
-            sums, n = np.zeros(3), 0
-            loop["next_row"] += spacing
-            frames(engine, strain)
-        progress.update(engine.step_count, engine.time)
-        if done:
-            break
-        due = time.perf_counter() - last_checkpoint > case.output.checkpoint_interval
-        if due if comm is None else comm.bcast(due, root=0):
-            now = time.perf_counter()
-            loop.update(sums=sums.tolist(), n=n,
-                        wall_clock_compression_s=loop["wall_clock_compression_s"] + now - t0,
-                        wall_clock_before_s=loop["wall_clock_before_s"] + now - t_start)
-            t0 = t_start = last_checkpoint = now
-            _save_checkpoint(out_dir, test, loop)
-    progress.update(engine.step_count, engine.time, force=True)
-    if not is_root():
-        return None
-    series.close()
-    from cosim.lab.shear_report import read_series
-    data = read_series(out_dir / "series.csv")
-    summary = summarize(data, tx.residual_fraction)
-    summary.update({
-        "case": name, "grains": int(test.radii.size), "d50": test.d50, "size": tx.size,
-        "cell_pressure": tx.cell_pressure, "strain_rate": rate,
-        "inertial_number": rate * test.d50 * math.sqrt(test.density / tx.cell_pressure), "dt": engine.dt,
-        "steps_consolidation": loop["consolidation_steps"],
-        "steps_compression": int(engine.step_count - loop["consolidation_steps"]),
-        "void_ratio_consolidated": loop["e_consolidated"], "void_ratio_end": float(data["void_ratio"][-1]),
-        **servo_errors(data, tx.cell_pressure),
-        "wall_clock_consolidation_s": loop["wall_clock_consolidation_s"],
-        "wall_clock_compression_s": loop["wall_clock_compression_s"] + time.perf_counter() - t0,
-        "wall_clock_total_s": loop["wall_clock_before_s"] + time.perf_counter() - t_start,
-        **{k: v for k, v in loop["specimen_info"].items() if k != "generation_log"},
-    })
-    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
-    atomic_write_text(out_dir / "summary.txt", summary_text(summary))
-    plot_run(data, out_dir / "triaxial.png", f"{name}: σ₃ = {tx.cell_pressure / 1e3:g} kPa")
-    for line in summary_text(summary).splitlines():
-        log(line)
-    return summary
 
 
 # --------------------------------------------------------------------------- report
