@@ -269,12 +269,14 @@ def resume_row_missing(series, output_instant, comm=None):
 
 
 class ProgressLine:
-    """``step 1200/5000 (24%)  t=1.20e-03 s  3.4e+03 steps/s  ETA 0:01:10`` every few seconds (rank 0)."""
+    """``step 1200/5000 (24%)  t=1.20e-03 s  3.4e+03 steps/s  ETA 0:01:10`` every few seconds (rank 0);
+    ``unit`` names what is counted (an embedded loading counts its CSV rows)."""
 
-    def __init__(self, label, total_steps, interval_s=2.0, first_step=0):
+    def __init__(self, label, total_steps, interval_s=2.0, first_step=0, unit="step"):
         self.label, self.total, self.interval = label, total_steps, interval_s
         self.t0 = self.last = time.perf_counter()
         self.first = first_step
+        self.unit = unit
 
     def update(self, step, sim_time, force=False):
         now = time.perf_counter()
@@ -286,8 +288,8 @@ class ProgressLine:
         self.total = max(self.total, step)  # an estimated total may be passed
         eta = (self.total - step) / rate if rate > 0 else float("inf")
         eta_s = time.strftime("%H:%M:%S", time.gmtime(eta)) if eta != float("inf") else "--:--:--"
-        say(f"[{self.label}] step {step}/{self.total} ({100.0 * step / self.total:5.1f}%)  "
-            f"t={sim_time:.4e} s  {rate:.3e} steps/s  ETA {eta_s}")
+        say(f"[{self.label}] {self.unit} {step}/{self.total} ({100.0 * step / self.total:5.1f}%)  "
+            f"t={sim_time:.4e} s  {rate:.3e} {self.unit}s/s  ETA {eta_s}")
 
 
 class PvdCollection:

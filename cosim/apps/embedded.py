@@ -574,7 +574,8 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, res
     if model.solid is not None and coupled_app.writes_fe_files(model.solid):
         stem = f"fields_from_step{model.solid.step_count}" if resume else "fields"
         fields = FieldWriter(model.solid, out_dir / stem, extra_fields=[model.interface.traction_field])
-    progress = ProgressLine(name, em.rows, case.output.progress_interval, first_step=first_row - 1)
+    progress = ProgressLine(name, em.rows, case.output.progress_interval, first_step=first_row - 1,
+                            unit="row")
     frame_every = max(1, em.rows // FRAMES)
     t_last = model.time
     t_entry = last_checkpoint = time.perf_counter()
