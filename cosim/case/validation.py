@@ -295,22 +295,27 @@ def _check_dem(path, dem):
                 raise CaseError(path, f"{key}.file", w.file, f"file not found (looked for {f})")
 
 
+def _check_builds_its_run(path, case, lasts, time_keys, builds):
+    """A kind that sets its own length (no time.duration or time.steps) and builds its grains
+    and walls (no [dem.particles], no [[dem.walls]])."""
+    t, dem, kind = case.time, case.dem, case.case.kind
+    article = "an" if kind[0] in "aeiou" else "a"
+    if t.duration is not None or t.steps is not None:
+        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
+                        f"{article} {kind} run lasts {lasts}; give only {time_keys}")
+    if dem.particles is not None:
+        raise CaseError(path, "dem.particles", "present", f"{article} {kind} case {builds}; remove [dem.particles]")
+    if dem.walls:
+        raise CaseError(path, "dem.walls", len(dem.walls), f"{article} {kind} case {builds}; remove [[dem.walls]]")
+
+
 def _check_direct_shear(path, case):
     """A direct shear case: [dem] materials, [specimen], [direct_shear]; the run length
     follows from the shear distance, so [time] only sets dt / safety_factor."""
-    t = case.time
-    if t.duration is not None or t.steps is not None:
-        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
-                        "a direct_shear run lasts until direct_shear.shear_distance; "
-                        "give only time.dt or time.safety_factor")
     _require(path, case, "dem", "specimen", "direct_shear")
+    _check_builds_its_run(path, case, "until direct_shear.shear_distance", "time.dt or time.safety_factor",
+                          "builds its grains from [specimen] and the shear box itself")
     dem, sp, ds = case.dem, case.specimen, case.direct_shear
-    if dem.particles is not None:
-        raise CaseError(path, "dem.particles", "present",
-                        "a direct_shear case builds its particles from [specimen]; remove [dem.particles]")
-    if dem.walls:
-        raise CaseError(path, "dem.walls", len(dem.walls),
-                        "a direct_shear case builds the shear box itself; remove [[dem.walls]]")
     _check_materials(path, dem, [(f"direct_shear.{key}", getattr(ds, key))
                                  for key in ("sand_material", "side_wall_material", "plate_material")]
                      + _deposition_material(sp))
@@ -345,15 +350,10 @@ def _check_direct_shear(path, case):
 def _check_triaxial(path, case):
     """A triaxial case: [dem] materials, [specimen], [triaxial]; the run ends at the final
     axial strain, so [time] only sets dt / safety_factor."""
-    t = case.time
-    if t.duration is not None or t.steps is not None:
-        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
-                        "a triaxial run lasts until triaxial.axial_strain; give only time.dt or time.safety_factor")
     _require(path, case, "dem", "specimen", "triaxial")
+    _check_builds_its_run(path, case, "until triaxial.axial_strain", "time.dt or time.safety_factor",
+                          "builds its grains from [specimen] and its walls itself")
     dem, sp, tx = case.dem, case.specimen, case.triaxial
-    if dem.particles is not None or dem.walls:
-        raise CaseError(path, "dem.particles" if dem.particles is not None else "dem.walls", "present",
-                        "a triaxial case builds its specimen from [specimen] and its walls itself; remove it")
     _check_materials(path, dem, [(f"triaxial.{key}", getattr(tx, key))
                                  for key in ("sand_material", "wall_material", "plate_material")]
                      + _deposition_material(sp))
@@ -409,18 +409,10 @@ GRAINS_ACROSS = 3  # a DEM zone or slice narrower than this many of the largest 
 def _check_footing(path, case):
     """A footing case (docs/design.md §7): [dem] materials, [specimen], [footing], [soil], [zone];
     the run ends at the footing's final settlement, so [time] only sets safety_factor."""
-    t = case.time
-    if t.duration is not None or t.steps is not None:
-        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
-                        "a footing run lasts until footing.settlement; give only time.safety_factor")
-    dem, sp, ft, soil, zone = case.dem, case.specimen, case.footing, case.soil, case.zone
     _require(path, case, "dem", "specimen", "footing", "soil", "zone")
-    if dem.particles is not None:
-        raise CaseError(path, "dem.particles", "present",
-                        "a footing case builds its grains from [specimen]; remove [dem.particles]")
-    if dem.walls:
-        raise CaseError(path, "dem.walls", len(dem.walls),
-                        "a footing case builds its walls and footing itself; remove [[dem.walls]]")
+    _check_builds_its_run(path, case, "until footing.settlement", "time.safety_factor",
+                          "builds its grains from [specimen] and its walls and footing itself")
+    dem, sp, ft, soil, zone = case.dem, case.specimen, case.footing, case.soil, case.zone
     _check_materials(path, dem, [("footing.material", ft.material), ("footing.sand_material", ft.sand_material),
                                  ("footing.side_wall_material", ft.side_wall_material),
                                  ("zone.interface_material", zone.interface_material)]
@@ -460,14 +452,10 @@ def _check_embedded(path, case):
     """An embedded case: [dem] materials, [specimen] (radius expansion), [embedded] with one role
     per group; what needs the model itself (groups, dimensions, the zone's thickness) is
     checked when it is meshed (cosim.apps.embedded.prepare)."""
-    t, dem, sp, em = case.time, case.dem, case.specimen, case.embedded
     _require(path, case, "dem", "specimen", "embedded")
-    if t.duration is not None or t.steps is not None:
-        raise CaseError(path, "time.duration / time.steps", (t.duration, t.steps),
-                        "an embedded run lasts embedded.loading_time after the rest; give only time.safety_factor")
-    if dem.particles is not None or dem.walls:
-        raise CaseError(path, "dem.particles / dem.walls", "present",
-                        "an embedded case takes its grains from [specimen] and its walls from the model; remove them")
+    _check_builds_its_run(path, case, "embedded.loading_time after the rest", "time.safety_factor",
+                          "takes its grains from [specimen] and its walls from the model")
+    dem, sp, em = case.dem, case.specimen, case.embedded
     if sp.source == "file":
         _check_packing_file(path, "specimen.file", sp.file)  # its grains are checked against the model when read
     elif sp.method != "radius_expansion":
