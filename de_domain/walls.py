@@ -19,6 +19,8 @@ barycentric coordinates of the closest point (−λ_a F, docs/design.md §5.1).
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -32,6 +34,13 @@ from .contact_laws import (
     released_energy,
 )
 from .state import E_FRICTION, W_CONTACT, W_WORK
+
+#: the closest point of a triangle to a sphere's centre: the point, its barycentric weights and
+#: the feature it lies on (closest_point_on_triangle)
+ClosestPoint = namedtuple("ClosestPoint", "x y z la lb lc feature")
+#: the features of a triangle abc, in the order the deduplication rule and the triangle's
+#: edge (ab, bc, ca) and vertex (a, b, c) tables index by
+FACE, EDGE_AB, EDGE_BC, EDGE_CA, VERTEX_A, VERTEX_B, VERTEX_C = range(7)
 
 
 class PlaneWall:
@@ -203,15 +212,15 @@ def _edge_ids(triangles):
 def point_triangle_distance2(px, py, pz, a, b, c):
     """Squared distance from a point to triangle abc (Ericson, RTCD §5.1.5)."""
     q = closest_point_on_triangle(px, py, pz, a, b, c)
-    return (q[0] - px) ** 2 + (q[1] - py) ** 2 + (q[2] - pz) ** 2
+    return (q.x - px) ** 2 + (q.y - py) ** 2 + (q.z - pz) ** 2
 
 
 @njit(cache=True, error_model="numpy")
 def closest_point_on_triangle(px, py, pz, a, b, c):
     """Closest point of triangle abc to p, its barycentric weights and its feature.
 
-    Ericson, Real-Time Collision Detection §5.1.5. Feature: 0 face, 1/2/3 edge
-    ab/bc/ca, 4/5/6 vertex a/b/c. Returns (qx, qy, qz, la, lb, lc, feature).
+    Ericson, Real-Time Collision Detection §5.1.5. Returns a ``ClosestPoint``: the point, its
+    weights (la, lb, lc) and its feature (``FACE``, ``EDGE_AB`` … ``VERTEX_C``).
     """
     abx = b[0] - a[0]; aby = b[1] - a[1]; abz = b[2] - a[2]
     acx = c[0] - a[0]; acy = c[1] - a[1]; acz = c[2] - a[2]
@@ -219,35 +228,35 @@ def closest_point_on_triangle(px, py, pz, a, b, c):
     d1 = abx * apx + aby * apy + abz * apz
     d2 = acx * apx + acy * apy + acz * apz
     if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2], 1.0, 0.0, 0.0, 4
+        return ClosestPoint(a[0], a[1], a[2], 1.0, 0.0, 0.0, VERTEX_A)
     bpx = px - b[0]; bpy = py - b[1]; bpz = pz - b[2]
     d3 = abx * bpx + aby * bpy + abz * bpz
     d4 = acx * bpx + acy * bpy + acz * bpz
     if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2], 0.0, 1.0, 0.0, 5
+        return ClosestPoint(b[0], b[1], b[2], 0.0, 1.0, 0.0, VERTEX_B)
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         v = d1 / (d1 - d3)
-        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1.0 - v, v, 0.0, 1
+        return ClosestPoint(a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1.0 - v, v, 0.0, EDGE_AB)
     cpx = px - c[0]; cpy = py - c[1]; cpz = pz - c[2]
     d5 = abx * cpx + aby * cpy + abz * cpz
     d6 = acx * cpx + acy * cpy + acz * cpz
     if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2], 0.0, 0.0, 1.0, 6
+        return ClosestPoint(c[0], c[1], c[2], 0.0, 0.0, 1.0, VERTEX_C)
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
-        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 1.0 - w, 0.0, w, 3
+        return ClosestPoint(a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 1.0 - w, 0.0, w, EDGE_CA)
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
-                0.0, 1.0 - w, w, 2)
+        return ClosestPoint(b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
+                            0.0, 1.0 - w, w, EDGE_BC)
     denom = 1.0 / (va + vb + vc)
     v = vb * denom
     w = vc * denom
-    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w,
-            1.0 - v - w, v, w, 0)
+    return ClosestPoint(a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w,
+                        1.0 - v - w, v, w, FACE)
 
 
 @njit(cache=True, error_model="numpy")
@@ -353,18 +362,18 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
 def _keep_facet_contact(i, k, s, tri, feature, pos, radius, meshes, candidates):
     """Deduplication rule of the module docstring for candidate ``s`` of sphere ``i``
     (array index ``i``; its candidates are ``candidates.start[k]:candidates.start[k + 1]``)."""
-    if feature == 0:
+    if feature == FACE:
         return True
     vertices = meshes.vertices
     triangles = meshes.triangles
     tri_edges = meshes.triangle_edges
     f_tri = candidates.triangle
-    if feature <= 3:
-        edge = tri_edges[tri, feature - 1]
+    if feature <= EDGE_CA:
+        edge = tri_edges[tri, feature - EDGE_AB]
         vertex = -1
     else:
         edge = -1
-        vertex = triangles[tri, feature - 4]
+        vertex = triangles[tri, feature - VERTEX_A]
     r2 = radius[i] * radius[i]
     for s2 in range(candidates.start[k], candidates.start[k + 1]):
         if s2 == s:
@@ -372,20 +381,20 @@ def _keep_facet_contact(i, k, s, tri, feature, pos, radius, meshes, candidates):
         t2 = f_tri[s2]
         q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t2, 0]],
                                       vertices[triangles[t2, 1]], vertices[triangles[t2, 2]])
-        if (q[0] - pos[i, 0]) ** 2 + (q[1] - pos[i, 1]) ** 2 + (q[2] - pos[i, 2]) ** 2 >= r2:
+        if (q.x - pos[i, 0]) ** 2 + (q.y - pos[i, 1]) ** 2 + (q.z - pos[i, 2]) ** 2 >= r2:
             continue
-        f2 = q[6]
+        f2 = q.feature
         if edge >= 0:
             if tri_edges[t2, 0] == edge or tri_edges[t2, 1] == edge or tri_edges[t2, 2] == edge:
-                if f2 == 0:
+                if f2 == FACE:
                     return False
-                if f2 <= 3 and tri_edges[t2, f2 - 1] == edge and t2 < tri:
+                if f2 <= EDGE_CA and tri_edges[t2, f2 - EDGE_AB] == edge and t2 < tri:
                     return False
         else:
             if triangles[t2, 0] == vertex or triangles[t2, 1] == vertex or triangles[t2, 2] == vertex:
-                if f2 <= 3:
+                if f2 <= EDGE_CA:
                     return False
-                if triangles[t2, f2 - 4] == vertex and t2 < tri:
+                if triangles[t2, f2 - VERTEX_A] == vertex and t2 < tri:
                     return False
     return True
 
@@ -397,10 +406,10 @@ def _facet_candidate_active(i, k, s, pos, radius, meshes, candidates):
     t = candidates.triangle[s]
     q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], vertices[triangles[t, 0]],
                                   vertices[triangles[t, 1]], vertices[triangles[t, 2]])
-    d2 = (q[0] - pos[i, 0]) ** 2 + (q[1] - pos[i, 1]) ** 2 + (q[2] - pos[i, 2]) ** 2
+    d2 = (q.x - pos[i, 0]) ** 2 + (q.y - pos[i, 1]) ** 2 + (q.z - pos[i, 2]) ** 2
     if d2 >= radius[i] * radius[i]:
         return False
-    return _keep_facet_contact(i, k, s, t, q[6], pos, radius, meshes, candidates)
+    return _keep_facet_contact(i, k, s, t, q.feature, pos, radius, meshes, candidates)
 
 
 @njit(cache=True, error_model="numpy")
@@ -469,9 +478,9 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
         bb = vertices[triangles[t, 1]]
         c = vertices[triangles[t, 2]]
         q = closest_point_on_triangle(pos[i, 0], pos[i, 1], pos[i, 2], a, bb, c)
-        dx = q[0] - pos[i, 0]
-        dy = q[1] - pos[i, 1]
-        dz = q[2] - pos[i, 2]
+        dx = q.x - pos[i, 0]
+        dy = q.y - pos[i, 1]
+        dz = q.z - pos[i, 2]
         dist = np.sqrt(dx * dx + dy * dy + dz * dz)
         overlap = r - dist
         if dist > 0.0:
@@ -488,7 +497,7 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
             nx /= norm
             ny /= norm
             nz /= norm
-        la, lb, lc = q[3], q[4], q[5]
+        la, lb, lc = q.la, q.lb, q.lc
         va = vertex_vel[triangles[t, 0]]
         vb = vertex_vel[triangles[t, 1]]
         vc = vertex_vel[triangles[t, 2]]

@@ -49,10 +49,10 @@ def test_editing_a_callee_in_another_module_recompiles_its_cached_callers(tmp_pa
     assert run_probe(tmp_path) == (1, 1)   # loaded from the cache (one signature: count and fill)
     walls = package / "walls.py"
     source = walls.read_text()
-    original = "    return (q[0] - px) ** 2 + (q[1] - py) ** 2 + (q[2] - pz) ** 2\n"
+    original = "    return (q.x - px) ** 2 + (q.y - py) ** 2 + (q.z - pz) ** 2\n"
     assert source.count(original) == 1
-    walls.write_text(source.replace(original, "    return 4.0 * ((q[0] - px) ** 2 + (q[1] - py) ** 2"
-                                              " + (q[2] - pz) ** 2)\n"))
+    walls.write_text(source.replace(original, "    return 4.0 * ((q.x - px) ** 2 + (q.y - py) ** 2"
+                                              " + (q.z - pz) ** 2)\n"))
     # the distance now reads twice as large, 3 mm > r + skin: the edited callee runs
     assert run_probe(tmp_path) == (0, 0)
     stale = [p.name for p in (package / "__pycache__").iterdir() if p.name.startswith("numba-")]
