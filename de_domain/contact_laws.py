@@ -8,12 +8,13 @@ the opposite). The rolling moment ``M_r`` is stored as the moment on i (j gets �
 it is the −k_r Δθ_r spring of docs/design.md §2.7 seen from j.
 
 Law selection is an integer (``LINEAR`` or ``HERTZ``) resolved in one place,
-:func:`normal_force_and_stiffness`; every kernel calls :func:`contact_force`.
+:func:`normal_force_and_stiffness`; every kernel calls the one law, ``contact_force``
+(``contact_force_inlined`` in the sphere-pair loop).
 
 Parameters are read in place as ``pair_params[a, b, PAIR_*]`` for the material pair
 (a, b): taking the row ``pair_params[a, b]`` would make an array view, which costs a
 reference-count increment and decrement (two calls, atomic) per contact.
-:func:`contact_force` is inlined (Numba IR) into the sphere-pair kernel, where a call
+``contact_force_inlined`` is inlined (Numba IR) into the sphere-pair kernel, where a call
 would pass 27 arguments and return 14 values through memory per contact; inlined, it
 takes that kernel's ``FASTMATH`` flags (the same as its own).
 """
@@ -136,15 +137,7 @@ def rolling_moment(k_r, mr_max, nx, ny, nz, wrx, wry, wrz, mrx, mry, mrz, dt):
     return mrx * scale, mry * scale, mrz * scale, 0.5 * mr_max * mr_max * inv_kr, dissipation
 
 
-def _into_the_pair_kernel(call, caller_ir, callee_ir):
-    """Numba inline cost model of :func:`contact_force`: inlined into the sphere-pair loop
-    (``fused._pair_block``: −8 % per step), called from the wall and facet kernels (their
-    contacts are few; inlining everywhere tripled the first compilation to 60 s)."""
-    return caller_ir.func_id.func_name == "_pair_block"
-
-
-@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline=_into_the_pair_kernel)
-def contact_force(law, pair_params, a, b, geometry, motion, bodies, springs, dt):
+def _contact_force(law, pair_params, a, b, geometry, motion, bodies, springs, dt):
     """One contact step of docs/design.md §2.3–2.7.
 
     Normal: f_n = f_el(δ) − c_n v_rn, c_n = 2α√(m* k_n), clipped to f_n ≥ 0, with
@@ -218,6 +211,14 @@ def contact_force(law, pair_params, a, b, geometry, motion, bodies, springs, dt)
     fz = -f_n * nz + ftz
     return ContactResult(fx, fy, fz, Springs(ftx, fty, ftz, mrx, mry, mrz),
                          ContactEnergy(e_normal, e_tangential, e_rolling, friction_dissipation, damping_dissipation))
+
+
+#: the contact law as the wall and facet kernels call it: one compiled function (their contacts
+#: are few; inlining it everywhere tripled the first compilation to 60 s)
+contact_force = njit(cache=True, error_model="numpy", fastmath=FASTMATH)(_contact_force)
+#: the same law inlined (Numba IR) into the caller: the sphere-pair loop (``fused._pair_block``:
+#: −8 % per step)
+contact_force_inlined = njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")(_contact_force)
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)

@@ -60,7 +60,7 @@ from .contact_laws import (
     ContactGeometry,
     RelativeMotion,
     Springs,
-    contact_force,
+    contact_force_inlined,
     linear_normal_stiffness,
     released_energy,
 )
@@ -207,7 +207,7 @@ def _pair_block(b, settings, particles, params, pairs, e1):
             mrx = 0.0; mry = 0.0; mrz = 0.0
             if rolling:
                 mrx = hr[p, 0]; mry = hr[p, 1]; mrz = hr[p, 2]
-            res = contact_force(law, pair_params, mi, material[j], ContactGeometry(nx, ny, nz, overlap),
+            res = contact_force_inlined(law, pair_params, mi, material[j], ContactGeometry(nx, ny, nz, overlap),
                                 RelativeMotion(vjx - vix, vjy - viy, vjz - viz, dvn, angvel[j, 0] - angvel[i, 0],
                                                angvel[j, 1] - angvel[i, 1], angvel[j, 2] - angvel[i, 2]),
                                 ContactBodies(k_lin, r_red, r_red, m_eff),
