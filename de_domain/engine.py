@@ -387,26 +387,31 @@ class Engine:
         else:
             particles = self._public_arrays()
             perm = nl.perm
-        pairs = PairList(perm, nl.i_start, nl.pair_js, nl.j_start, nl.j_slot, nl.ht, nl.hr, self.j_rec,
-                         self.pair_ov)
+        pairs = PairList(perm=perm, i_start=nl.i_start, pair_js=nl.pair_js, j_start=nl.j_start, j_slot=nl.j_slot,
+                         tangential=nl.ht, rolling_moment=nl.hr, j_record=self.j_rec, overlap=self.pair_ov)
         point, normal, velocity, material = walls
-        plane_walls = PlaneWalls(point, normal, velocity, material, nl.ref_wall_point, nl.w_start, nl.w_idx,
-                                 nl.w_hist, nl.w_fn, nl.w_force)
+        plane_walls = PlaneWalls(point=point, normal=normal, velocity=velocity, material=material,
+                                 ref_point=nl.ref_wall_point, start=nl.w_start, wall=nl.w_idx, history=nl.w_hist,
+                                 normal_force=nl.w_fn, force=nl.w_force)
         vertices, vertex_vel, vertex_impulse = facet_state
         ref_vertices = nl.ref_vertices if nl.ref_vertices is not None else vertices
-        meshes = FacetMeshes(vertices, vertex_vel, self._triangles, self._triangle_edges, self._triangle_material,
-                             self._triangle_mesh, self._vertex_force, vertex_impulse, ref_vertices)
-        candidates = FacetCandidates(nl.perm, nl.f_start, nl.f_tri, nl.facet_history, self.facet_active,
-                                     self.facet_force, self.facet_lambda)
-        return (settings, particles, ContactParameters(self.young, self.pair_params), pairs, plane_walls, meshes,
-                candidates)
+        meshes = FacetMeshes(vertices=vertices, vertex_velocity=vertex_vel, triangles=self._triangles,
+                             triangle_edges=self._triangle_edges, triangle_material=self._triangle_material,
+                             triangle_mesh=self._triangle_mesh, vertex_force=self._vertex_force,
+                             vertex_impulse=vertex_impulse, ref_vertices=ref_vertices)
+        candidates = FacetCandidates(particle_index=nl.perm, start=nl.f_start, triangle=nl.f_tri,
+                                     history=nl.facet_history, active=self.facet_active, force=self.facet_force,
+                                     barycentric=self.facet_lambda)
+        params = ContactParameters(young=self.young, pair_params=self.pair_params)
+        return settings, particles, params, pairs, plane_walls, meshes, candidates
 
     def _public_arrays(self):
         """The particle arrays in the public order, as the kernels take them."""
         p = self._particles
-        return ParticleArrays(p.pos, p.vel, self._acceleration, p.angvel, p.radius, p.mass, p.inertia, p.material,
-                              p.blocked, p.prescribed, p.prescribed_velocity, p.force, p.torque,
-                              self.neighbors.ref_pos, p.ghost)
+        return ParticleArrays(pos=p.pos, vel=p.vel, accel=self._acceleration, angvel=p.angvel, radius=p.radius,
+                              mass=p.mass, inertia=p.inertia, material=p.material, blocked=p.blocked,
+                              prescribed=p.prescribed, prescribed_velocity=p.prescribed_velocity, force=p.force,
+                              torque=p.torque, ref_pos=self.neighbors.ref_pos, ghost=p.ghost)
 
     def _sorted_copies(self):
         """Particle arrays gathered into the spatial order (index = perm position), in
@@ -421,12 +426,15 @@ class Engine:
         copies = self._sorted
         if copies is None or copies.pos.shape[0] != p.n or (constraints and copies.blocked is p.blocked):
             n = p.n
-            constraint_arrays = ((np.zeros((n, 6), np.bool_), np.zeros((n, 6), np.bool_), np.zeros((n, 6)))
-                                 if constraints else (p.blocked, p.prescribed, p.prescribed_velocity))
+            blocked, prescribed, prescribed_velocity = (
+                (np.zeros((n, 6), np.bool_), np.zeros((n, 6), np.bool_), np.zeros((n, 6)))
+                if constraints else (p.blocked, p.prescribed, p.prescribed_velocity))
             copies = self._sorted = ParticleArrays(
-                np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n),
-                np.empty(n), np.empty(n, np.int32), *constraint_arrays, np.zeros((n, 3)), np.zeros((n, 3)),
-                np.empty((n, 3)), np.empty(n, np.bool_))
+                pos=np.empty((n, 3)), vel=np.empty((n, 3)), accel=np.empty((n, 3)), angvel=np.empty((n, 3)),
+                radius=np.empty(n), mass=np.empty(n), inertia=np.empty(n), material=np.empty(n, np.int32),
+                blocked=blocked, prescribed=prescribed, prescribed_velocity=prescribed_velocity,
+                force=np.zeros((n, 3)), torque=np.zeros((n, 3)), ref_pos=np.empty((n, 3)),
+                ghost=np.empty(n, np.bool_))
         fused.gather_in_order(self.neighbors.perm, self._public_arrays(), copies, constraints)
         self._copies_hold_state = True
         self._clock[CLOCK_PARTICLE_SHIFT] = -1.0  # measured again before the first step on them
