@@ -12,6 +12,11 @@ the mean and standard deviation over the seeds, and the coupled model's mean aga
 all-DEM one. Writes ``<out>/table.md`` and the pictures of :func:`pictures`.
 
     python studies/tunnel_seeds.py [--seeds 11 12 13] [--case runs/tunnel.toml] [--out runs/out/tunnel_seeds] [--jobs 2]
+                                   [--set embedded.parameters.chimney=0.1 ...]
+
+``--set`` overrides go to every run (a variant of the case); a model's runs that exist are kept,
+so a variant of the zone can be compared against another study's all-DEM runs by linking
+them into its folder (``<out>/seed<N>/dem``): the all-DEM twin does not depend on the zone.
 """
 from __future__ import annotations
 
@@ -35,7 +40,7 @@ WHERE = ("crown", "springline", "invert")
 TAIL = 0.2  # the end of the loading: the mean over this last fraction of the rows
 
 
-def run_all(case, seeds, out, jobs):
+def run_all(case, seeds, out, jobs, overrides=()):
     """Every model of every seed whose summary does not exist, ``jobs`` at a time, one thread
     each (the all-DEM runs first: they are the longest)."""
     from concurrent.futures import ThreadPoolExecutor
@@ -45,7 +50,8 @@ def run_all(case, seeds, out, jobs):
     def one(model, seed):
         with open(out / f"seed{seed}_{model}.log", "w") as log:
             command = [sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out / f"seed{seed}"),
-                       "--set", f"case.seed={seed}", "--set", f'embedded.model="{model}"']
+                       "--set", f"case.seed={seed}", "--set", f'embedded.model="{model}"',
+                       *[arg for item in overrides for arg in ("--set", item)]]
             code = subprocess.run(command, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT,
                                   env={**os.environ, "NUMBA_NUM_THREADS": "1"}).returncode
         if code != 0:
@@ -56,10 +62,11 @@ def run_all(case, seeds, out, jobs):
             done.result()
 
 
-def run_fe(case, out):
+def run_fe(case, out, overrides=()):
     if not (out / "fe" / "summary.json").exists():
         subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out),
-                        "--set", 'embedded.model="fe"'], cwd=ROOT, check=True)
+                        "--set", 'embedded.model="fe"', *[arg for item in overrides for arg in ("--set", item)]],
+                       cwd=ROOT, check=True)
 
 
 def measured(folder, volume="lining"):
@@ -137,6 +144,9 @@ def main():
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "out" / "tunnel_seeds")
     parser.add_argument("--jobs", type=int, default=2, help="runs at a time, one thread each")
     parser.add_argument("--no-run", action="store_true", help="report the runs that exist, start none")
+    parser.add_argument("--set", action="append", default=[], dest="overrides", metavar="KEY=VALUE",
+                        help="a case override for every run, as cosim run --set")
+    parser.add_argument("--no-pictures", action="store_true", help="write table.md only (not the docs' pictures)")
     args = parser.parse_args()
     import tomllib
     case = tomllib.loads(args.case.read_text())
@@ -144,9 +154,9 @@ def main():
     p = case["embedded"]["parameters"]
     z0 = p["C"] + p["D"] / 2.0
     args.out.mkdir(parents=True, exist_ok=True)
-    run_fe(args.case, args.out / "fe_only")
+    run_fe(args.case, args.out / "fe_only", args.overrides)
     if not args.no_run:
-        run_all(args.case, args.seeds, args.out, args.jobs)
+        run_all(args.case, args.seeds, args.out, args.jobs, args.overrides)
     folders, rows = [], {m: [] for m in MODELS}
     for seed in args.seeds:
         out = args.out / f"seed{seed}"
@@ -158,7 +168,8 @@ def main():
     text = table(rows, fe)
     (args.out / "table.md").write_text(text)
     print(text)
-    pictures(folders, args.out / "fe_only" / "fe", case["case"]["name"], lining["centre"][0], z0)
+    if not args.no_pictures:
+        pictures(folders, args.out / "fe_only" / "fe", case["case"]["name"], lining["centre"][0], z0)
 
 
 if __name__ == "__main__":

@@ -145,7 +145,8 @@ def prepare(case, case_path, out_dir, resume):
         built["curve"] = curve_of(case.specimen)
         d_max = float(built["curve"].diameters[-1])
     spacing = 0.1 * d_max  # the estimate's resolution
-    across = thickness(split.zone.tets, split.zone.faces, spacing, np.random.default_rng(0))
+    across = thickness(split.zone.tets, split.zone.faces, spacing, np.random.default_rng(0),
+                       at_least=GRAINS_ACROSS * d_max)
     if across + spacing < GRAINS_ACROSS * d_max:
         raise CaseError(case_path, "embedded.volumes", roles.grains,
                         f"the grain volumes are {across * 1e3:.2f} mm thick at most: at least {GRAINS_ACROSS} of the "
