@@ -3,16 +3,17 @@ with the FE-only twin beside them, and the settlement trough against Peck (1969)
 item 3; docs/guide/tunnel.md).
 
 Runs the case with each seed in both models unless a run's summary exists (``--jobs`` runs at
-a time, one thread each: ``NUMBA_NUM_THREADS=1``; about 15 minutes a coupled run and 50 an
-all-DEM one on this 2-core machine), and the FE-only twin once (it has no packing). Per run: the lining's thrust and
-moment at the crown, springline and invert at rest (row 0 of series.csv) and at the end of
-the loading (the mean of the last TAIL of the rows), and the surface trough's Peck fit
+a time, one thread each: ``NUMBA_NUM_THREADS=1``, on ``--ranks`` MPI ranks; two at a time, about
+4 minutes a coupled run and 12 an all-DEM one on this 2-core machine), and the FE-only twin once
+(it has no packing). Per run: the lining's thrust and moment at the crown, springline and
+invert at rest (row 0 of series.csv) and at the end of the loading (the mean of the last TAIL of
+the rows), and the surface trough's Peck fit
 (S_max, i, K = i / z0, the surface volume loss V_s / A; cosim.apps.tunnel_report). Per model
 the mean and standard deviation over the seeds, and the coupled model's mean against the
 all-DEM one. Writes ``<out>/table.md`` and the pictures of :func:`pictures`.
 
     python studies/tunnel_seeds.py [--seeds 11 12 13] [--case runs/tunnel.toml] [--out runs/out/tunnel_seeds] [--jobs 2]
-                                   [--set embedded.parameters.chimney=0.1 ...]
+                                   [--set embedded.parameters.chimney=0.1 ...] [--ranks 2]
 
 ``--set`` overrides go to every run (a variant of the case); a model's runs that exist are kept,
 so a variant of the zone can be compared against another study's all-DEM runs by linking
@@ -40,20 +41,26 @@ WHERE = ("crown", "springline", "invert")
 TAIL = 0.2  # the end of the loading: the mean over this last fraction of the rows
 
 
-def run_all(case, seeds, out, jobs, overrides=()):
+#: what OpenMPI needs to start as root and on more ranks than cores (set where not set)
+OPENMPI_DEFAULTS = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+
+
+def run_all(case, seeds, out, jobs, overrides=(), ranks=1):
     """Every model of every seed whose summary does not exist, ``jobs`` at a time, one thread
-    each (the all-DEM runs first: they are the longest)."""
+    each, on ``ranks`` MPI ranks (the all-DEM runs first: they are the longest)."""
     from concurrent.futures import ThreadPoolExecutor
     todo = [(model, seed) for model in reversed(MODELS) for seed in seeds
             if not (out / f"seed{seed}" / model / "summary.json").exists()]
 
     def one(model, seed):
         with open(out / f"seed{seed}_{model}.log", "w") as log:
-            command = [sys.executable, "-m", "cosim.cli", "run", str(case), "--out", str(out / f"seed{seed}"),
-                       "--set", f"case.seed={seed}", "--set", f'embedded.model="{model}"',
+            launcher = ["mpirun", "--oversubscribe", "--bind-to", "none", "-n", str(ranks)] if ranks > 1 else []
+            command = [*launcher, sys.executable, "-m", "cosim.cli", "run", str(case),
+                       "--out", str(out / f"seed{seed}"), "--set", f"case.seed={seed}",
+                       "--set", f'embedded.model="{model}"',
                        *[arg for item in overrides for arg in ("--set", item)]]
             code = subprocess.run(command, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT,
-                                  env={**os.environ, "NUMBA_NUM_THREADS": "1"}).returncode
+                                  env={**OPENMPI_DEFAULTS, **os.environ, "NUMBA_NUM_THREADS": "1"}).returncode
         if code != 0:
             raise SystemExit(f"the {model} run of seed {seed} failed: see {out}/seed{seed}_{model}.log")
 
@@ -89,7 +96,7 @@ def measured(folder, volume="lining"):
 
 def table(rows, fe):
     """table.md: per quantity, each model's mean ± std over the seeds, coupled against all-DEM."""
-    keys = list(fe.keys())
+    keys = list(fe.keys()) if fe else list(next(r for m in MODELS for r in rows[m]).keys())
     lines = ["| quantity | coupled (mean ± std) | all-DEM (mean ± std) | coupled − all-DEM | FE-only |",
              "|---|---|---|---|---|"]
     def stats(values):
@@ -101,7 +108,7 @@ def table(rows, fe):
     for key in keys:
         (c, c_text), (d, d_text) = (stats([r[key] for r in rows[m]]) for m in MODELS)
         diff = f"{100 * (c - d) / abs(d):+.1f} %" if np.isfinite(c) and np.isfinite(d) and d else "–"
-        lines.append(f"| {key} | {c_text} | {d_text} | {diff} | {fe[key]:.4g} |")
+        lines.append(f"| {key} | {c_text} | {d_text} | {diff} | {f'{fe[key]:.4g}' if fe else 'not run'} |")
     return "\n".join(lines) + "\n"
 
 
@@ -143,10 +150,12 @@ def main():
     parser.add_argument("--case", type=Path, default=ROOT / "runs" / "tunnel.toml")
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "out" / "tunnel_seeds")
     parser.add_argument("--jobs", type=int, default=2, help="runs at a time, one thread each")
+    parser.add_argument("--ranks", type=int, default=1, help="MPI ranks a run (mpirun -n RANKS), one thread each")
     parser.add_argument("--no-run", action="store_true", help="report the runs that exist, start none")
     parser.add_argument("--set", action="append", default=[], dest="overrides", metavar="KEY=VALUE",
                         help="a case override for every run, as cosim run --set")
     parser.add_argument("--no-pictures", action="store_true", help="write table.md only (not the docs' pictures)")
+    parser.add_argument("--no-fe", action="store_true", help="without the FE-only twin")
     args = parser.parse_args()
     import tomllib
     case = tomllib.loads(args.case.read_text())
@@ -154,9 +163,10 @@ def main():
     p = case["embedded"]["parameters"]
     z0 = p["C"] + p["D"] / 2.0
     args.out.mkdir(parents=True, exist_ok=True)
-    run_fe(args.case, args.out / "fe_only", args.overrides)
+    if not args.no_fe:
+        run_fe(args.case, args.out / "fe_only", args.overrides)
     if not args.no_run:
-        run_all(args.case, args.seeds, args.out, args.jobs, args.overrides)
+        run_all(args.case, args.seeds, args.out, args.jobs, args.overrides, args.ranks)
     folders, rows = [], {m: [] for m in MODELS}
     for seed in args.seeds:
         out = args.out / f"seed{seed}"
@@ -164,11 +174,11 @@ def main():
             if (out / model / "summary.json").exists():
                 rows[model].append(measured(out / model))
                 folders.append((f"{model} {seed}", out / model))
-    fe = measured(args.out / "fe_only" / "fe")
+    fe = None if args.no_fe else measured(args.out / "fe_only" / "fe")
     text = table(rows, fe)
     (args.out / "table.md").write_text(text)
     print(text)
-    if not args.no_pictures:
+    if not args.no_pictures and not args.no_fe:  # the pictures show the FE-only twin too
         pictures(folders, args.out / "fe_only" / "fe", case["case"]["name"], lining["centre"][0], z0)
 
 
