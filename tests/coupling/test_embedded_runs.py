@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from test_footing import cosim, kill_during_loading
+from test_footing import cosim, kill_during_loading, run_ok, set_options
 
 CASE = "runs/retaining_wall_small.toml"
 SMALL = {"embedded.parameters.L": 0.09, "embedded.parameters.H": 0.04, "embedded.parameters.a": 0.03,
@@ -14,20 +14,18 @@ SMALL = {"embedded.parameters.L": 0.09, "embedded.parameters.H": 0.04, "embedded
 
 
 def overrides(extra=None):
-    return [arg for key, value in {**SMALL, **(extra or {})}.items() for arg in ("--set", f"{key}={json.dumps(value)}")]
+    return set_options({**SMALL, **(extra or {})})
 
 
 @pytest.fixture(scope="module")
 def one_rank(tmp_path_factory):
     out = tmp_path_factory.mktemp("embedded_one")
-    res = cosim("run", CASE, "--out", str(out), *overrides())
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    run_ok("run", CASE, "--out", str(out), *overrides())
     return out
 
 
 def test_two_ranks_fill_rest_and_load_the_same_model_bit_for_bit(one_rank, tmp_path):
-    res = cosim("run", CASE, "--out", str(tmp_path), *overrides(), mpi=2)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    res = run_ok("run", CASE, "--out", str(tmp_path), *overrides(), mpi=2)
     assert res.stdout.count("outputs: ") == 1
     one, two = one_rank / "coupled", tmp_path / "coupled"
     assert json.loads((two / "summary.json").read_text())["ranks"] == 2
@@ -42,8 +40,7 @@ def test_two_ranks_fill_rest_and_load_the_same_model_bit_for_bit(one_rank, tmp_p
 def test_a_killed_loading_resumes_to_the_same_rows(one_rank, tmp_path):
     sets = overrides({"output.checkpoint_interval": 0.05})
     kill_during_loading([CASE, "--out", str(tmp_path), *sets], tmp_path)
-    res = cosim("run", CASE, "--out", str(tmp_path), *sets, "--resume")
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    res = run_ok("run", CASE, "--out", str(tmp_path), *sets, "--resume")
     assert "resumed the loading at row" in res.stdout
     assert (tmp_path / "coupled" / "series.csv").read_text() == (one_rank / "coupled" / "series.csv").read_text()
     resumed = json.loads((tmp_path / "coupled" / "summary.json").read_text())

@@ -42,6 +42,18 @@ def cosim(*args, mpi=0, timeout=900):
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=ENV, cwd=ROOT)
 
 
+def set_options(values):
+    """``--set key=value`` options of a dict of case keys (values written as JSON, which TOML reads alike)."""
+    return [arg for key, value in values.items() for arg in ("--set", f"{key}={json.dumps(value)}")]
+
+
+def run_ok(*args, mpi=0):
+    """``cosim ARGS`` that must succeed (the tails of its output when it does not)."""
+    res = cosim(*args, mpi=mpi)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    return res
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     """The coupled model, then the all-DEM one, of the tiny case, in one case folder."""

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from test_footing import cosim, kill_during_loading
+from test_footing import kill_during_loading, run_ok, set_options
 
 CASE = "runs/tunnel_small.toml"
 SHORT = {"embedded.loading_time": 0.016, "embedded.rows": 8, "output.progress_interval": 1000.0}
@@ -15,20 +15,18 @@ FILES = ("series.csv", "rest.csv", "lining_sections.csv", "settlement_trough.csv
 
 
 def overrides(extra=None):
-    return [arg for key, value in {**SHORT, **(extra or {})}.items() for arg in ("--set", f"{key}={json.dumps(value)}")]
+    return set_options({**SHORT, **(extra or {})})
 
 
 @pytest.fixture(scope="module")
 def one_rank(tmp_path_factory):
     out = tmp_path_factory.mktemp("tunnel_one")
-    res = cosim("run", CASE, "--out", str(out), *overrides())
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    run_ok("run", CASE, "--out", str(out), *overrides())
     return out
 
 
 def test_two_ranks_run_the_tunnel_bit_for_bit(one_rank, tmp_path):
-    res = cosim("run", CASE, "--out", str(tmp_path), *overrides(), mpi=2)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    run_ok("run", CASE, "--out", str(tmp_path), *overrides(), mpi=2)
     one, two = one_rank / "coupled", tmp_path / "coupled"
     assert json.loads((two / "summary.json").read_text())["ranks"] == 2
     for name in FILES:
@@ -41,8 +39,7 @@ def test_two_ranks_run_the_tunnel_bit_for_bit(one_rank, tmp_path):
 def test_a_killed_tunnel_resumes_to_the_same_rows_and_sections(one_rank, tmp_path):
     sets = overrides({"output.checkpoint_interval": 0.05})
     kill_during_loading([CASE, "--out", str(tmp_path), *sets], tmp_path)
-    res = cosim("run", CASE, "--out", str(tmp_path), *sets, "--resume")
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    res = run_ok("run", CASE, "--out", str(tmp_path), *sets, "--resume")
     assert "resumed the loading at row" in res.stdout
     for name in ("series.csv", "lining_sections.csv"):
         assert (tmp_path / "coupled" / name).read_text() == (one_rank / "coupled" / name).read_text(), name
