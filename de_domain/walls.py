@@ -41,6 +41,9 @@ ClosestPoint = namedtuple("ClosestPoint", "x y z la lb lc feature")
 #: the features of a triangle abc, in the order the deduplication rule and the triangle's
 #: edge (ab, bc, ca) and vertex (a, b, c) tables index by
 FACE, EDGE_AB, EDGE_BC, EDGE_CA, VERTEX_A, VERTEX_B, VERTEX_C = range(7)
+#: a sphere as its contacts with walls and facets read it: material, radius, mass, velocity
+#: v^{n−½}, spin ω^{n−½}, last acceleration (scalars: no array views per contact)
+SphereState = namedtuple("SphereState", "material radius mass vx vy vz wx wy wz ax ay az")
 
 
 class PlaneWall:
@@ -260,6 +263,57 @@ def closest_point_on_triangle(px, py, pz, a, b, c):
 
 
 @njit(cache=True, error_model="numpy")
+def release_springs(law, pair_params, a, b, k_linear, r, history, energy):
+    """A sphere–surface contact that has opened: the elastic energy left in its springs
+    (``history``: tangential force, rolling moment) booked as friction in ``energy`` and the
+    springs zeroed (contact_laws.released_energy)."""
+    if (history[0] != 0.0 or history[1] != 0.0 or history[2] != 0.0 or history[3] != 0.0 or history[4] != 0.0
+            or history[5] != 0.0):
+        springs = Springs(history[0], history[1], history[2], history[3], history[4], history[5])
+        energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, a, b, k_linear, r, springs)
+        for k in range(6):
+            history[k] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def sphere_on_surface(law, dt, pair_params, sphere, b, k_linear, geometry, vsx, vsy, vsz, history, energy):
+    """One contact of a sphere (``sphere``: a :data:`SphereState`) with a rigid surface of
+    material ``b`` (a plane wall or a facet) whose contact point moves at (vsx, vsy, vsz): the
+    contact point's velocity on the sphere at the arm r − δ/2 along n (``geometry``, n from the
+    sphere to the surface), the law (contact_laws.contact_force; the surface is body j:
+    infinite mass, no spin), the springs written back to ``history``, and in ``energy``
+    (``state.W_*``) the surface's work on the sphere and the contact's energy terms. Returns
+    the force on the sphere and its torque about the centre, (arm n) × F + M_r."""
+    nx, ny, nz, overlap = geometry
+    r = sphere.radius
+    arm = r - 0.5 * overlap
+    vcx = sphere.vx + arm * (sphere.wy * nz - sphere.wz * ny)
+    vcy = sphere.vy + arm * (sphere.wz * nx - sphere.wx * nz)
+    vcz = sphere.vz + arm * (sphere.wx * ny - sphere.wy * nx)
+    dvn = -0.5 * dt * (sphere.ax * nx + sphere.ay * ny + sphere.az * nz)
+    res = contact_force(law, pair_params, sphere.material, b, geometry,
+                        RelativeMotion(vsx - vcx, vsy - vcy, vsz - vcz, dvn, -sphere.wx, -sphere.wy, -sphere.wz),
+                        ContactBodies(k_linear, r, r, sphere.mass),
+                        Springs(history[0], history[1], history[2], history[3], history[4], history[5]), dt)
+    fx, fy, fz = res.fx, res.fy, res.fz
+    for k in range(6):
+        history[k] = res.springs[k]
+    energy[W_WORK] += (fx * vsx + fy * vsy + fz * vsz) * dt
+    for k in range(5):
+        energy[W_CONTACT + k] += res.energy[k]
+    return (fx, fy, fz, arm * (ny * fz - nz * fy) + res.springs.mrx, arm * (nz * fx - nx * fz) + res.springs.mry,
+            arm * (nx * fy - ny * fx) + res.springs.mrz)
+
+
+@njit(cache=True, error_model="numpy")
+def sphere_state(particles, i):
+    """The :data:`SphereState` of sphere ``i``, read once for all its surface contacts."""
+    vel, angvel, accel = particles.vel, particles.angvel, particles.accel
+    return SphereState(particles.material[i], particles.radius[i], particles.mass[i], vel[i, 0], vel[i, 1],
+                       vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2], accel[i, 0], accel[i, 1], accel[i, 2])
+
+
+@njit(cache=True, error_model="numpy")
 def plane_wall_contacts(first, last, settings, particles, params, perm, walls, energy):
     """Contacts of the owned spheres of perm positions [first, last) with their
     plane-wall candidates, ``walls.start[s]:walls.start[s + 1]`` in ascending wall index.
@@ -277,9 +331,6 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
     law = settings.law
     dt = settings.dt
     pos = particles.pos
-    vel = particles.vel
-    accel = particles.accel
-    angvel = particles.angvel
     material = particles.material
     young = params.young
     pair_params = params.pair_params
@@ -293,7 +344,6 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
     w_fn = walls.normal_force
     w_force = walls.force
     radius = particles.radius
-    mass = particles.mass
     force = particles.force
     torque = particles.torque
     ghost = particles.ghost
@@ -304,6 +354,7 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
         fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
         tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
         r = radius[i]
+        sphere = sphere_state(particles, i)
         for c in range(w_start[s], w_start[s + 1]):
             w = w_idx[c]
             dist = 0.0
@@ -312,14 +363,7 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
             overlap = r - dist
             k_lin = linear_normal_stiffness(young[material[i]], r, young[wall_mat[w]], r)
             if overlap <= 0.0:
-                if (w_hist[c, 0] != 0.0 or w_hist[c, 1] != 0.0 or w_hist[c, 2] != 0.0
-                        or w_hist[c, 3] != 0.0 or w_hist[c, 4] != 0.0 or w_hist[c, 5] != 0.0):
-                    springs = Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4],
-                                      w_hist[c, 5])
-                    energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, material[i], wall_mat[w],
-                                                                      k_lin, r, springs)
-                    for k in range(6):
-                        w_hist[c, k] = 0.0
+                release_springs(law, pair_params, material[i], wall_mat[w], k_lin, r, w_hist[c], energy)
                 w_fn[c] = 0.0
                 for k in range(3):
                     w_force[c, k] = 0.0
@@ -327,20 +371,9 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
             nx = -wall_normal[w, 0]
             ny = -wall_normal[w, 1]
             nz = -wall_normal[w, 2]
-            arm = r - 0.5 * overlap
-            vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
-            vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
-            vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
-            dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-            res = contact_force(law, pair_params, material[i], wall_mat[w], ContactGeometry(nx, ny, nz, overlap),
-                                RelativeMotion(wall_vel[w, 0] - vcx, wall_vel[w, 1] - vcy, wall_vel[w, 2] - vcz, dvn,
-                                               -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
-                                ContactBodies(k_lin, r, r, mass[i]),
-                                Springs(w_hist[c, 0], w_hist[c, 1], w_hist[c, 2], w_hist[c, 3], w_hist[c, 4],
-                                        w_hist[c, 5]), dt)
-            wfx, wfy, wfz = res.fx, res.fy, res.fz
-            for k in range(6):
-                w_hist[c, k] = res.springs[k]
+            wfx, wfy, wfz, wtx, wty, wtz = sphere_on_surface(
+                law, dt, pair_params, sphere, wall_mat[w], k_lin, ContactGeometry(nx, ny, nz, overlap),
+                wall_vel[w, 0], wall_vel[w, 1], wall_vel[w, 2], w_hist[c], energy)
             w_fn[c] = -(wfx * nx + wfy * ny + wfz * nz)
             w_force[c, 0] = wfx
             w_force[c, 1] = wfy
@@ -348,12 +381,9 @@ def plane_wall_contacts(first, last, settings, particles, params, perm, walls, e
             fx += wfx
             fy += wfy
             fz += wfz
-            tx += arm * (ny * wfz - nz * wfy) + res.springs.mrx
-            ty += arm * (nz * wfx - nx * wfz) + res.springs.mry
-            tz += arm * (nx * wfy - ny * wfx) + res.springs.mrz
-            energy[W_WORK] += (wfx * wall_vel[w, 0] + wfy * wall_vel[w, 1] + wfz * wall_vel[w, 2]) * dt
-            for k in range(5):
-                energy[W_CONTACT + k] += res.energy[k]
+            tx += wtx
+            ty += wty
+            tz += wtz
         force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
         torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
 
@@ -430,11 +460,7 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
     law = settings.law
     dt = settings.dt
     pos = particles.pos
-    vel = particles.vel
-    accel = particles.accel
-    angvel = particles.angvel
     radius = particles.radius
-    mass = particles.mass
     material = particles.material
     young = params.young
     pair_params = params.pair_params
@@ -450,6 +476,7 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
     cand_lambda = candidates.barycentric
     sfx, sfy, sfz, stx, sty, stz = resultant
     r = radius[i]
+    sphere = sphere_state(particles, i)
     s0 = candidates.start[k]
     s1 = candidates.start[k + 1]
     for s in range(s0, s1):
@@ -467,11 +494,7 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
         h = history[s]
         k_lin = linear_normal_stiffness(young[material[i]], r, young[tri_mat[t]], r)
         if not active[s]:
-            if h[0] != 0.0 or h[1] != 0.0 or h[2] != 0.0 or h[3] != 0.0 or h[4] != 0.0 or h[5] != 0.0:
-                energy[W_CONTACT + E_FRICTION] += released_energy(law, pair_params, material[i], tri_mat[t],
-                                                                  k_lin, r, Springs(h[0], h[1], h[2], h[3], h[4],
-                                                                                    h[5]))
-                h[:] = 0.0
+            release_springs(law, pair_params, material[i], tri_mat[t], k_lin, r, h, energy)
             cand_force[s, :] = 0.0
             continue
         a = vertices[triangles[t, 0]]
@@ -504,19 +527,8 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
         vfx = la * va[0] + lb * vb[0] + lc * vc[0]
         vfy = la * va[1] + lb * vb[1] + lc * vc[1]
         vfz = la * va[2] + lb * vb[2] + lc * vc[2]
-        arm = r - 0.5 * overlap
-        vcx = vel[i, 0] + arm * (angvel[i, 1] * nz - angvel[i, 2] * ny)
-        vcy = vel[i, 1] + arm * (angvel[i, 2] * nx - angvel[i, 0] * nz)
-        vcz = vel[i, 2] + arm * (angvel[i, 0] * ny - angvel[i, 1] * nx)
-        dvn = -0.5 * dt * (accel[i, 0] * nx + accel[i, 1] * ny + accel[i, 2] * nz)
-        res = contact_force(law, pair_params, material[i], tri_mat[t], ContactGeometry(nx, ny, nz, overlap),
-                            RelativeMotion(vfx - vcx, vfy - vcy, vfz - vcz, dvn,
-                                           -angvel[i, 0], -angvel[i, 1], -angvel[i, 2]),
-                            ContactBodies(k_lin, r, r, mass[i]),
-                            Springs(h[0], h[1], h[2], h[3], h[4], h[5]), dt)
-        fx, fy, fz = res.fx, res.fy, res.fz
-        for m in range(6):
-            h[m] = res.springs[m]
+        fx, fy, fz, tx, ty, tz = sphere_on_surface(law, dt, pair_params, sphere, tri_mat[t], k_lin,
+                                                   ContactGeometry(nx, ny, nz, overlap), vfx, vfy, vfz, h, energy)
         cand_force[s, 0] = fx
         cand_force[s, 1] = fy
         cand_force[s, 2] = fz
@@ -526,12 +538,9 @@ def facet_contacts_of(i, k, settings, particles, params, meshes, candidates, res
         sfx += fx
         sfy += fy
         sfz += fz
-        stx += arm * (ny * fz - nz * fy) + res.springs.mrx
-        sty += arm * (nz * fx - nx * fz) + res.springs.mry
-        stz += arm * (nx * fy - ny * fx) + res.springs.mrz
-        energy[W_WORK] += (fx * vfx + fy * vfy + fz * vfz) * dt
-        for m in range(5):
-            energy[W_CONTACT + m] += res.energy[m]
+        stx += tx
+        sty += ty
+        stz += tz
     return sfx, sfy, sfz, stx, sty, stz
 
 
