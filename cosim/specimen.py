@@ -107,7 +107,7 @@ def read_lab_inputs(case, case_path, length, width):
     must lie in the ``length`` × ``width`` box (overlapping a side by at most 25 % of a radius),
     or the sieve curve. Returns (built dict, the smallest grain's radius); bad input is a
     CaseError naming the key."""
-    from cosim.case.loading import resolve_path
+    from cosim.case.paths import resolve_path
     from cosim.errors import CaseError
     sp = case.specimen
     if sp.source == "generate":

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.case.loading import resolve_path
 from cosim.case.messages import warn
+from cosim.case.paths import resolve_path
 from cosim.errors import CaseError, RunFailed
 from cosim.outputs import (
     CsvSeries,

@@ -91,7 +91,7 @@ class LoadingRamp:
 
 def mesh_file(case, case_path):
     """The model's path: relative to the case file, else in meshes/."""
-    from cosim.case.loading import resolve_path
+    from cosim.case.paths import resolve_path
     given = resolve_path(case_path, case.embedded.mesh)
     return given if Path(given).exists() else case.embedded.mesh
 
@@ -159,7 +159,7 @@ def read_packing(case, case_path, split):
     must lie in a grain volume, or within its radius of a free surface (a CaseError names the
     first that does not)."""
     from cosim.apps.dem import warn_overlaps
-    from cosim.case.loading import resolve_path
+    from cosim.case.paths import resolve_path
     from de_domain.packing import load_packing
     from de_domain.zone_fill import inside_tets
     sp = case.specimen

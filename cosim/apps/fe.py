@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.case.loading import mesh_path
+from cosim.case.paths import mesh_path
 from cosim.errors import CaseError, RunFailed
 from cosim.outputs import CsvSeries, ProgressLine, is_root, mpi_comm, say, write_run_metadata
 

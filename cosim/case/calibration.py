@@ -8,8 +8,9 @@ from typing import Literal, Optional
 
 from pydantic import Field, ValidationError
 
-from cosim.case.loading import load_case, resolve_path
+from cosim.case.loading import load_case
 from cosim.case.messages import schema_error
+from cosim.case.paths import resolve_path
 from cosim.case.schema import Section
 from cosim.errors import CaseError
 

@@ -1,6 +1,5 @@
 """Reading a case file: TOML, ``--set`` overrides, the schema, then the cross-field checks, all
-before any computation (each failure a :class:`cosim.errors.CaseError`); and the paths a case
-names, relative to its own folder.
+before any computation (each failure a :class:`cosim.errors.CaseError`).
 """
 from __future__ import annotations
 
@@ -13,6 +12,7 @@ from pydantic import ValidationError
 
 from cosim.case.messages import dotted, schema_error
 from cosim.case.schema import Case
+from cosim.case.validation import check_consistency, check_sections
 from cosim.errors import CaseError
 
 
@@ -23,7 +23,6 @@ def load_case(path, overrides=()):
     TOML value (``1e-3``, ``true``, ``[0, 0, -9.81]``) or else taken as a string.
     Relative file paths in the case are resolved against the case file's folder.
     """
-    from cosim.case.validation import check_consistency, check_sections
     path = Path(path)
     if not path.is_file():
         raise CaseError(path, "<file>", str(path), "the case file must exist and be a readable TOML file")
@@ -90,17 +89,3 @@ def override_path(path, key, text):
     if isinstance(parts[-1], int):
         raise CaseError(path, key, text, "--set replaces one key, not a whole list entry")
     return parts
-
-
-def resolve_path(case_file, relative):
-    """A path in a case file, relative to the case file's folder."""
-    p = Path(relative)
-    return p if p.is_absolute() else (Path(case_file).parent / p).resolve()
-
-
-def mesh_path(case_file, name):
-    """A mesh named in a case: relative to the case file, else in the project's meshes/ folder."""
-    local = resolve_path(case_file, name)
-    if local.exists():
-        return local
-    return Path(__file__).resolve().parents[2] / "meshes" / name

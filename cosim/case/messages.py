@@ -7,10 +7,13 @@ import sys
 
 from pydantic import BaseModel
 
+from cosim.case.schema import Case
 from cosim.errors import CaseError
 
 
 def dotted(loc):
+    """A key's path as the case file writes it: ``["dem", "materials", 0, "friction"]`` →
+    ``dem.materials[0].friction``."""
     out = ""
     for part in loc:
         out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
@@ -20,9 +23,7 @@ def dotted(loc):
 def schema_error(path, exc, root=None):
     """The first pydantic error of a file validated against ``root`` (default :class:`Case`)
     as a CaseError naming the dotted key, the value and what is allowed."""
-    if root is None:
-        from cosim.case.schema import Case
-        root = Case
+    root = root or Case
     err = exc.errors()[0]
     loc = [p for p in err["loc"] if not (isinstance(p, str) and ("[" in p or p.startswith("function-")))]
     key = dotted(loc)

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from cosim.case.loading import mesh_path, resolve_path
 from cosim.case.messages import warn
+from cosim.case.paths import mesh_path, resolve_path
 from cosim.case.schema import SECTIONS_OF_KIND, Case, SpecimenSection
 from cosim.errors import CaseError
 from fe_domain.gmsh_text import parameter_ranges, physical_groups

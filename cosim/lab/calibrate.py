@@ -250,7 +250,8 @@ def calibrated_case_text(case_path, overrides, note):
 
     import tomli_w
 
-    from cosim.case.loading import apply_overrides, resolve_path
+    from cosim.case.loading import apply_overrides
+    from cosim.case.paths import resolve_path
     raw = apply_overrides(case_path, tomllib.loads(Path(case_path).read_text()), overrides)
     specimen = raw.get("specimen", {})
     if "file" in specimen:
