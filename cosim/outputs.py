@@ -97,10 +97,9 @@ def save_engine_checkpoint(engine, path):
     path = Path(path)
     tmp = path.with_name(path.stem + ".tmp.npz")
     engine.save_checkpoint(tmp)  # a distributed engine's ends with a barrier: the file is complete
-    if engine.domain is None or engine.domain.comm.rank == 0:
+    if engine.runner.is_root:
         os.replace(tmp, path)
-    if engine.domain is not None:
-        engine.domain.comm.Barrier()
+    engine.runner.barrier()
 
 
 CHECKPOINT_COMMIT = "checkpoint.commit.json"  # the files of a checkpoint being made current

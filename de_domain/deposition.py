@@ -269,11 +269,7 @@ def _top_of_grains(engine):
     """max(z + r) over every grain (collective when distributed)."""
     p = engine.particles
     top = float(np.max(p.pos[p.owned, 2] + p.radius[p.owned], initial=-np.inf))
-    comm = _comm(engine)
-    if comm is None:
-        return top
-    from mpi4py import MPI
-    return comm.allreduce(top, op=MPI.MAX)
+    return engine.runner.maximum(top)
 
 
 def _comm(engine):

@@ -35,9 +35,8 @@ from . import fused
 from .comm import GhostExchange, RowGather, concatenate_records, exchange_records, gather_rows, sum_in_rank_order
 from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
 from .neighbors import MAX_SPREAD, ContactRecords, record_keys
-from .particles import ARRAY_FIELDS, Particles
-from .state import BOOK_INITIALISED, CLOCK_PARTICLE_SHIFT
-from .walls import vertex_forces_of_rows
+from .particles import ARRAY_FIELDS
+from .state import BOOK_INITIALISED
 
 ID_MASK = (1 << 32) - 1
 
@@ -64,11 +63,56 @@ class Domain:
         return bool(self._flag[0])
 
 
+class DistributedRun:
+    """The run object (:mod:`de_domain.runs`) of an engine spread over the ranks of
+    ``domain.comm``: the steps of :func:`run` and the collectives, in rank order where the
+    order changes the bits."""
+
+    def __init__(self, domain):
+        self.domain = domain
+        self.comm = domain.comm
+
+    @property
+    def is_root(self):
+        return self.comm.rank == 0
+
+    def run(self, engine, nsteps):
+        run(engine, nsteps)
+
+    def wall_totals(self, engine):
+        wall_totals(engine)
+
+    def minimum(self, value):
+        return self.comm.allreduce(value, op=MPI.MIN)
+
+    def maximum(self, value):
+        return self.comm.allreduce(value, op=MPI.MAX)
+
+    def broadcast(self, value):
+        return self.comm.bcast(value)
+
+    def concatenate(self, array):
+        return np.concatenate(self.comm.allgather(array))
+
+    def barrier(self):
+        self.comm.Barrier()
+
+    def books(self, engine, books):
+        return reduce_books(engine, books)
+
+    def owned_rows(self, engine):
+        return gather_owned(engine)
+
+    def contact_records(self, engine):
+        return gather_records(engine)
+
+
 def distribute(engine, particles, comm):
     """Keep this rank's slab of the global ``particles`` (identical on every rank);
     the ghosts come with the first list build."""
     domain = Domain(comm, particles.n)
     engine.domain = domain
+    engine.runner = DistributedRun(domain)
     ids = np.arange(particles.n, dtype=np.int64)
     domain.decomposition = _decompose(comm, particles.pos, particles.radius, engine.neighbors.skin, gathered=True)
     mine = domain.decomposition.owner(particles.pos) == comm.rank
@@ -107,8 +151,7 @@ def rebuild(engine):
     domain = engine.domain
     comm = domain.comm
     check_finite(engine)
-    pending = engine._pending_records  # a checkpoint's history, on every rank
-    engine._pending_records = None
+    pending = engine.take_pending_records()  # a checkpoint's history, on every rank
     owned = engine.particles.owned
     if needs_rebalance(comm.allgather(int(owned.sum()))):
         domain.decomposition = _decompose(comm, engine.particles.pos[owned], engine.particles.radius[owned],
@@ -176,16 +219,8 @@ def _install(engine, mine, ghosts, carried):
     local = {k: v[order] for k, v in local.items()}
     ghost = np.ones(local["id"].size, np.bool_)
     ghost[np.argsort(order)[:mine["id"].size]] = False
-    engine.particles = Particles.from_arrays(local, 0)
-    engine.particles.ghost = ghost
-    engine.acceleration = local["acceleration"]
     engine.domain.ids = local["id"]
-    p = engine.particles
-    vertices = engine._gather_facets()[0]
-    wall_point, wall_normal, _, _ = engine._wall_arrays()
-    engine.neighbors.build(p.pos, p.radius, p.n, vertices, engine._triangles, wall_point, wall_normal, ghost=ghost,
-                           ids=engine.domain.ids, carried=carried, new_order=True)
-    engine._allocate_pair_arrays(engine.neighbors.pair_js.size)
+    engine.install_rows(local, ghost, engine.domain.ids, carried)
 
 
 def check_finite(engine):
@@ -216,51 +251,38 @@ def check_finite(engine):
                                  "velocity or time step far too large?)")
 
 
-def rebuild_due(engine, walls, vertices):
-    """This rank's part of the rebuild test (before a run): no lists yet, the walls
-    changed, or owned particles, walls or vertices moved more than the skin allows
-    since the last build (``walls``, ``vertices``: from the engine's ``_wall_arrays``,
-    ``_gather_facets``)."""
-    nl = engine.neighbors
-    if nl.perm is None or nl.ref_pos is None or nl.ref_pos.shape[0] != engine._particles.n:
-        return True
-    return engine._rebuild_due(vertices, walls[0], walls[1])
-
-
 def shift_agreed(engine):
     """Is the particles' largest displacement that the rebuild test reads (the engine's
-    ``CLOCK_PARTICLE_SHIFT``) the largest over all ranks? It is when the last step gathered
+    ``particle_shift``) the largest over all ranks? It is when the last step gathered
     it with the facet contacts (:func:`facet_vertex_forces`) and the sorted copies hold the
     state since. The rest of the test (walls, facet vertices) is the same on every rank, so
     the test then is too: no all-reduce needed (the serial test's result: the largest
     displacement over the ranks is the serial one, bit for bit)."""
-    return bool(engine.facets) and engine._copies_hold_state and engine._clock[CLOCK_PARTICLE_SHIFT] >= 0.0
+    return bool(engine.facets) and engine.copies_hold_state and engine.particle_shift >= 0.0
 
 
 def run(engine, nsteps):
     """``nsteps`` distributed steps (module docstring), on the sorted copies (left
     holding the state at the end if ``engine.keep_sorted``)."""
     domain = engine.domain
-    walls = engine._wall_arrays()      # read once: the steps advance them and write them back
-    facet_state = engine._gather_facets()
-    engine._book_boundary_jumps(walls[0], facet_state[0])
-    due = rebuild_due(engine, walls, facet_state[0])
+    boundaries = engine.boundaries()  # read once: the steps advance them and write them back
+    engine.book_boundary_jumps(boundaries)
+    due = engine.lists_due(boundaries)  # this rank's part of the test
     agreed = shift_agreed(engine)  # is ``due`` already the same on every rank?
     for _ in range(int(nsteps)):
         if due if agreed else domain.any_rank(due):
-            engine._write_back()
+            engine.write_back()
             rebuild(engine)
-        copies = engine._sorted_copies()
-        due = engine._advance_copies(copies, walls, facet_state)
+        copies, due = engine.step_on_copies(boundaries)
         domain.exchange.exchange(copies)
         if engine.facets:  # the flag rides with the facet contacts' gather
             due, agreed = facet_vertex_forces(engine, due), True
     if not engine.keep_sorted:
-        engine._write_back()
+        engine.write_back()
     if engine.wall_forces_each_run:
         wall_totals(engine)
     else:
-        engine._wall_forces_stale = bool(engine.walls)
+        engine.wall_forces_stale = bool(engine.walls)
 
 
 def wall_totals(engine):
@@ -304,24 +326,17 @@ def facet_vertex_forces(engine, due):
     (global id, triangle) order — the serial code's — and the impulses F Δt. Returns
     whether ``due`` (a list rebuild) is true on any rank, agreed in the same messages,
     which also leave the largest particle displacement of all ranks in the engine's
-    clock (:func:`shift_agreed`)."""
+    ``particle_shift`` (:func:`shift_agreed`)."""
     nl = engine.neighbors
     gather = engine.domain.facet_contacts
     local = gather.local_rows(engine.facet_force.shape[0])
     count = _facet_contact_rows(nl.f_start, nl.f_tri, engine.domain.ids, engine.facet_lambda, engine.facet_force,
                                 local)
-    clock = engine._clock
-    rows, due_anywhere, clock[CLOCK_PARTICLE_SHIFT] = gather.gather(count, due, clock[CLOCK_PARTICLE_SHIFT])
+    rows, due_anywhere, engine.particle_shift = gather.gather(count, due, engine.particle_shift)
     order = np.argsort(record_keys(rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)), kind="stable")
     rows = rows[order]
-    force = engine._vertex_force
-    vertex_forces_of_rows(force, engine._triangles, rows[:, 1].astype(np.int64), np.ascontiguousarray(rows[:, 2:5]),
-                          np.ascontiguousarray(rows[:, 5:8]))
-    for k, mesh in enumerate(engine.facets):
-        part = slice(engine._vertex_offsets[k], engine._vertex_offsets[k + 1])
-        mesh.vertex_impulse[:] += force[part] * engine.dt
-        mesh.vertex_force = force[part].copy()
-        mesh.force = mesh.vertex_force.sum(axis=0)
+    engine.set_facet_vertex_forces(rows[:, 1].astype(np.int64), np.ascontiguousarray(rows[:, 2:5]),
+                                   np.ascontiguousarray(rows[:, 5:8]))
     return due_anywhere
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from .contact_laws import HERTZ, LAWS
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
 from .neighbors import ContactRecords, NeighborList
 from .particles import ARRAY_FIELDS, Particles
+from .runs import SerialRun
 from .state import (
     BOOK_ACCUMULATED,
     BOOK_FIRST,
@@ -46,7 +48,7 @@ from .state import (
     PlaneWalls,
     StepSettings,
 )
-from .walls import FacetMesh, PlaneWall
+from .walls import FacetMesh, PlaneWall, vertex_forces_of_rows
 
 SORTED_MIN_STEPS = 8  # runs this long (every run, with Engine.keep_sorted) use spatially sorted copies
 STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
@@ -54,6 +56,11 @@ STATE_TERMS = ("kinetic_translational", "kinetic_rotational", "gravity",
 RATE_TERMS = ("work_walls", "work_boundary", "friction", "contact_damping", "background_damping")
 DISSIPATION_TERMS = ("friction", "contact_damping", "background_damping")
 WORK_TERMS = ("work_walls", "work_boundary")
+
+Boundaries = namedtuple("Boundaries", ["walls", "facets"])
+"""Where the boundaries are when a run starts (:meth:`Engine.boundaries`): ``walls`` = (point,
+normal, velocity, material) arrays of the plane walls, ``facets`` = (vertices, vertex
+velocities) of all facet meshes concatenated. A run advances these arrays in place."""
 
 
 def _distributed():
@@ -75,6 +82,12 @@ class Engine:
     walls and facets). ``particles`` then holds this rank's owned particles and
     ghosts in ascending global id (``domain.ids``); :meth:`global_particles` gathers
     them. Results are bit-identical for any number of ranks.
+
+    The steps are taken by the engine's run object, ``runner`` (:mod:`de_domain.runs`: a
+    :class:`~de_domain.runs.SerialRun`, or a :class:`~de_domain.distributed.DistributedRun`
+    with ``comm``), through the public step interface below (:meth:`boundaries` …
+    :meth:`install_rows`); every operation that needs other ranks goes through it too, so
+    the engine itself makes no MPI call.
 
     ``keep_sorted`` (default False): runs leave the particle state in the engine's
     spatially sorted copies instead of writing it back to ``particles`` after every
@@ -98,10 +111,12 @@ class Engine:
             raise ValueError(f"Engine: viscous_damping = {viscous_damping!r} must be >= 0")
         self._copies_hold_state = False  # the sorted copies, not the public arrays, are current
         self.keep_sorted = False
+        self.runner = SerialRun()
         #: distributed: gather the wall forces over the ranks after every run (False: only in
         #: update_wall_forces, checkpoints, and before a wall moved from outside is booked)
         self.wall_forces_each_run = True
-        self._wall_forces_stale = False
+        #: the walls' ``force`` is not the last step's (a run with ``wall_forces_each_run`` off)
+        self.wall_forces_stale = False
         self.particles = particles
         self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
         n_mat = len(self.materials)
@@ -154,7 +169,7 @@ class Engine:
         """The particles (this rank's owned ones and ghosts, when distributed), current:
         written back from the sorted copies first if a ``keep_sorted`` run left the
         state there."""
-        self._write_back()
+        self.write_back()
         return self._particles
 
     @particles.setter
@@ -166,7 +181,7 @@ class Engine:
     def acceleration(self) -> np.ndarray:
         """Last step's (v^{n+½} − v^{n−½})/Δt per particle (n, 3), for the contact dashpot;
         current, like :attr:`particles`."""
-        self._write_back()
+        self.write_back()
         return self._acceleration
 
     @acceleration.setter
@@ -249,9 +264,7 @@ class Engine:
             local = float(np.min(p.radius * np.sqrt(rho / E)))
         else:
             local = float(np.min(np.sqrt(p.mass / (2.0 * E * p.radius))))
-        if getattr(self, "domain", None) is not None:
-            return self.domain.comm.allreduce(local, op=_distributed().MPI.MIN)
-        return local
+        return self.runner.minimum(local)
 
     # ------------------------------------------------------------------ the step
     def step(self):
@@ -259,26 +272,15 @@ class Engine:
         self.run(1)
 
     def run(self, nsteps):
-        """Advance ``nsteps`` steps."""
-        nsteps = int(nsteps)
-        if self.domain is not None:
-            _distributed().run(self, nsteps)
-            return
-        done = 0
-        while done < nsteps:
-            walls = self._wall_arrays()
-            facet_state = self._gather_facets()
-            self._book_boundary_jumps(walls[0], facet_state[0])
-            self._update_lists(walls, facet_state[0])
-            todo = min(nsteps - done, self.steps_before_reorder())
-            done += self._advance(todo, walls, facet_state)
+        """Advance ``nsteps`` steps (by the run object, :attr:`runner`)."""
+        self.runner.run(self, int(nsteps))
 
     def update_wall_forces(self):
         """Make ``wall.force`` the last step's again (collective when distributed), after runs
         with ``wall_forces_each_run = False``."""
-        if self._wall_forces_stale:
-            _distributed().wall_totals(self)
-            self._wall_forces_stale = False
+        if self.wall_forces_stale:
+            self.runner.wall_totals(self)
+            self.wall_forces_stale = False
 
     def start_external_run(self):
         """For a caller that calls :func:`fused.advance` from its own compiled loop (the
@@ -294,15 +296,14 @@ class Engine:
         for a distributed engine."""
         if self.domain is not None:
             return None
-        walls = self._wall_arrays()
-        vertices, vertex_velocity = self._gather_facets()
-        nl = self.neighbors
-        if nl.perm is None or self.steps_before_reorder() <= 0 or self._rebuild_due(vertices, walls[0], walls[1]):
+        boundaries = self.boundaries()
+        if self.steps_before_reorder() <= 0 or self.lists_due(boundaries):
             return None
-        self._book_boundary_jumps(walls[0], vertices)
+        self.book_boundary_jumps(boundaries)
         copies = self._sorted_copies()
+        vertices, vertex_velocity = boundaries.facets
         facet_state = (vertices, vertex_velocity, self._load_facet_impulses())
-        return self._kernel_state(walls, facet_state, copies), self._books, self._clock_at_start()
+        return self._kernel_state(boundaries.walls, facet_state, copies), self._books, self._clock_at_start()
 
     def steps_before_reorder(self):
         """DEM steps left before the spatial order is refreshed (a run stops there)."""
@@ -342,32 +343,80 @@ class Engine:
                 wall.bind(state, k)
         return state
 
-    def _update_lists(self, walls, vertices):
+    # ------------------------------------------------------------------ step interface (de_domain.runs)
+    def boundaries(self):
+        """The plane walls' and facet meshes' state in the arrays a run advances
+        (:data:`Boundaries`; read once per run: the steps advance them and write them back)."""
+        return Boundaries(self._wall_arrays(), self._gather_facets())
+
+    def update_lists(self, boundaries):
+        """Rebuild the lists of one process if they are due (:meth:`lists_due`) or the
+        spatial order is due for a refresh, carrying the contact history."""
         p = self._particles
         nl = self.neighbors
-        wp, wn, _, _ = walls
+        wp, wn, _, _ = boundaries.walls
+        vertices = boundaries.facets[0]
         refresh = nl.perm is not None and self.steps_before_reorder() <= 0
-        if refresh or self._rebuild_due(vertices, wp, wn):
-            self._write_back()  # the build reads, reorders and rewrites the public arrays
+        if refresh or self.lists_due(boundaries):
+            self.write_back()  # the build reads, reorders and rewrites the public arrays
             if refresh or nl.perm is None:
                 nl.perm_step = self.step_count
             nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, ghost=p.ghost,
-                     carried=self._pending_records, new_order=refresh)
-            self._pending_records = None
+                     carried=self.take_pending_records(), new_order=refresh)
             self._allocate_pair_arrays(nl.pair_js.size)
 
-    def _rebuild_due(self, vertices, wall_point, wall_normal):
-        """Have owned particles, walls or facet vertices moved more than the skin allows
-        since the last list build (read from the sorted copies when they hold the state:
-        the largest displacement does not depend on the order; the particles' is then the
-        last step's, ``CLOCK_PARTICLE_SHIFT``, if a step was made on them)?"""
+    def install_rows(self, rows, ghost, ids, carried):
+        """A distributed rebuild's new rows (``rows``: every per-particle array, ``acceleration``,
+        ascending global ``ids``; ``ghost`` marks the copies of other ranks' particles) and
+        their lists, built in a new spatial order with the ``carried`` contact history."""
+        self.particles = Particles.from_arrays(rows, 0)
+        self._particles.ghost = ghost
+        self.acceleration = rows["acceleration"]
+        p = self._particles
+        boundaries = self.boundaries()
+        wall_point, wall_normal, _, _ = boundaries.walls
+        self.neighbors.build(p.pos, p.radius, p.n, boundaries.facets[0], self._triangles, wall_point, wall_normal,
+                             ghost=ghost, ids=ids, carried=carried, new_order=True)
+        self._allocate_pair_arrays(self.neighbors.pair_js.size)
+
+    def take_pending_records(self):
+        """The contact history a checkpoint left for the first list build (None once taken)."""
+        records, self._pending_records = self._pending_records, None
+        return records
+
+    def lists_due(self, boundaries):
+        """Must the lists be built before the next step: none yet or for other rows, or owned
+        particles, walls or facet vertices moved more than the skin allows since the last
+        build (read from the sorted copies when they hold the state: the largest displacement
+        does not depend on the order; the particles' is then the last step's,
+        :attr:`particle_shift`, if a step was made on them)?"""
         p = self._particles
         nl = self.neighbors
+        if nl.perm is None or nl.ref_pos is None or nl.ref_pos.shape[0] != p.n:
+            return True
+        wall_point, wall_normal, _, _ = boundaries.walls
+        vertices = boundaries.facets[0]
         if self._copies_hold_state:  # nothing moved the particles since the last step (if any) on them
             copies = self._sorted
             return nl.needs_rebuild(copies.pos, p.n, vertices, wall_point, wall_normal, ref_pos=copies.ref_pos,
-                                    particle_shift=self._clock[CLOCK_PARTICLE_SHIFT])
+                                    particle_shift=self.particle_shift)
         return nl.needs_rebuild(p.pos, p.n, vertices, wall_point, wall_normal)
+
+    @property
+    def particle_shift(self):
+        """The owned particles' largest displacement since the last list build, after the last
+        step (< 0: not known) — what the rebuild test reads; a distributed run sets it to the
+        largest over the ranks."""
+        return float(self._clock[CLOCK_PARTICLE_SHIFT])
+
+    @particle_shift.setter
+    def particle_shift(self, value):
+        self._clock[CLOCK_PARTICLE_SHIFT] = value
+
+    @property
+    def copies_hold_state(self):
+        """Do the spatially sorted copies, not :attr:`particles`' arrays, hold the current state?"""
+        return self._copies_hold_state
 
     def _kernel_state(self, walls, facet_state, sorted_copies):
         """The named tuples of :mod:`de_domain.state` for :func:`fused.advance`, over the
@@ -417,7 +466,7 @@ class Engine:
         """Particle arrays gathered into the spatial order (index = perm position), in
         buffers the engine keeps (made again only when the particle count changes, or
         constraints appear: without them the constraint arrays are not read); they hold
-        the state from then on, until :meth:`_write_back`. Gathered only if they do not
+        the state from then on, until :meth:`write_back`. Gathered only if they do not
         hold it already."""
         if self._copies_hold_state:
             return self._sorted
@@ -440,8 +489,9 @@ class Engine:
         self._clock[CLOCK_PARTICLE_SHIFT] = -1.0  # measured again before the first step on them
         return copies
 
-    def _advance(self, nsteps, walls, facet_state):
-        """Fused steps until ``nsteps`` are done or the lists need a rebuild.
+    def advance(self, nsteps, boundaries):
+        """Fused steps of one process until ``nsteps`` are done or the lists need a rebuild;
+        returns the steps done.
 
         Runs of ``SORTED_MIN_STEPS`` or more, and every run of a ``keep_sorted``
         engine, work on copies of the particle arrays in the spatial order (gathered
@@ -452,7 +502,8 @@ class Engine:
         copies = None
         if p.n_owned == p.n and (nsteps >= SORTED_MIN_STEPS or self.keep_sorted or self._copies_hold_state):
             copies = self._sorted_copies()
-        vertices, vertex_vel = facet_state
+        walls = boundaries.walls
+        vertices, vertex_vel = boundaries.facets
         impulse = self._load_facet_impulses()
         self._advance_kernel(nsteps, *self._kernel_state(walls, (vertices, vertex_vel, impulse), copies),
                              self._books, clock)
@@ -471,26 +522,30 @@ class Engine:
         """After ``steps`` kernel steps from the clock of :meth:`_clock_at_start`: the sorted
         copies written back (unless ``keep_sorted``), the clock, the walls and the facets."""
         if not self.keep_sorted:
-            self._write_back()
+            self.write_back()
         self.time = float(self._clock[CLOCK_TIME])
         self.step_count += int(steps)
         self._finish_walls(walls[0])
         self._finish_facets(vertices, impulse)
 
-    def _write_back(self):
+    def write_back(self):
         """Scatter the spatially sorted copies back to the public arrays, if they hold the
         state (the public arrays then do, and the next run gathers them again)."""
         if self._copies_hold_state:
             self._copies_hold_state = False
             fused.scatter_in_order(self.neighbors.perm, self._sorted, self._public_arrays())
 
-    def _advance_copies(self, copies, walls, facet_state):
-        """One step on the sorted copies of a distributed run (the facet vertex forces
-        and impulses are summed over the ranks afterwards, by the caller), with the
-        arrays of :meth:`_wall_arrays` and :meth:`_gather_facets` (advanced in place).
-        Returns whether this rank's particles, walls or vertices call for a list rebuild."""
+    def step_on_copies(self, boundaries):
+        """One step of a distributed run on this rank's spatially sorted copies (gathered
+        first if they do not hold the state; the facet vertex forces and impulses are summed
+        over the ranks afterwards, by the caller: :meth:`set_facet_vertex_forces`), with the
+        arrays of :meth:`boundaries` (advanced in place). Returns the copies (the caller
+        exchanges their ghost rows) and whether this rank's particles, walls or vertices call
+        for a list rebuild."""
+        copies = self._sorted_copies()
+        walls = boundaries.walls
         clock = self._clock_at_start()
-        vertices, vertex_vel = facet_state
+        vertices, vertex_vel = boundaries.facets
         facet_state = (vertices, vertex_vel, self._facet_impulse)  # this rank's impulse: not used
         due = self._advance_kernel(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
         self.time = float(clock[CLOCK_TIME])
@@ -499,7 +554,19 @@ class Engine:
         for k, mesh in enumerate(self.facets):
             mesh.vertices[:] = vertices[self.facet_rows(k)]
         self._facet_vertices_known[:] = vertices
-        return due
+        return copies, due
+
+    def set_facet_vertex_forces(self, triangle, weights, force):
+        """This step's facet vertex forces from the contacts of all ranks — ``triangle`` (c,),
+        the closest point's barycentric ``weights`` (c, 3) and the ``force`` on the sphere
+        (c, 3), in (global id, triangle) order — and the meshes' impulses += F Δt."""
+        vertex_force = self._vertex_force
+        vertex_forces_of_rows(vertex_force, self._triangles, triangle, weights, force)
+        for k, mesh in enumerate(self.facets):
+            part = self.facet_rows(k)
+            mesh.vertex_impulse[:] += vertex_force[part] * self.dt
+            mesh.vertex_force = vertex_force[part].copy()
+            mesh.force = mesh.vertex_force.sum(axis=0)
 
     def _finish_walls(self, wall_point):
         nl = self.neighbors
@@ -536,11 +603,13 @@ class Engine:
             mesh.force = mesh.vertex_force.sum(axis=0)
         self._facet_vertices_known[:] = vertices
 
-    def _book_boundary_jumps(self, wall_point, vertices):
-        """Work of walls/facets displaced from outside: −F_on_wall · Δx (last step's force).
-        ``wall_point``, ``vertices``: where they are now (:meth:`_wall_arrays`,
-        :meth:`_gather_facets`). One compiled call (:func:`fused.boundary_jumps`) unless a wall
+    def book_boundary_jumps(self, boundaries):
+        """Work of walls/facets displaced from outside since the engine last left them:
+        −F_on_wall · Δx (last step's force), ``boundaries`` saying where they are now
+        (:meth:`boundaries`). One compiled call (:func:`fused.boundary_jumps`) unless a wall
         moved: then its last force is made current first (collective when distributed)."""
+        wall_point = boundaries.walls[0]
+        vertices = boundaries.facets[0]
         walls_moved, work = fused.boundary_jumps(wall_point, self._wall_points_known, vertices,
                                                  self._facet_vertices_known, self._vertex_force)
         if walls_moved:
@@ -548,7 +617,7 @@ class Engine:
             for w in np.flatnonzero(np.any(wall_point != self._wall_points_known, axis=1)):
                 work -= float(self.walls[w].force @ (wall_point[w] - self._wall_points_known[w]))
             self._wall_points_known[:] = wall_point
-        if self.domain is None or self.domain.comm.rank == 0:  # the walls are global: book once
+        if self.runner.is_root:  # the walls are global: book once
             self._jump_work += work
 
     # ------------------------------------------------------------------ energy
@@ -582,9 +651,8 @@ class Engine:
             for k, value in enumerate(kinetic):  # kinetic_translational, kinetic_rotational, gravity
                 books[BOOK_STATE + k] = float(value)
         jump_work = self._jump_work
-        if self.domain is not None:
-            books = _distributed().reduce_books(self, books)
-            jump_work = self.domain.comm.bcast(jump_work)  # booked on rank 0 only
+        books = self.runner.books(self, books)
+        jump_work = self.runner.broadcast(jump_work)  # booked on the root only
         initialised = books[BOOK_INITIALISED] != 0.0
         state = self._book(books, BOOK_STATE, STATE_TERMS)
         acc = self._book(books, BOOK_ACCUMULATED, RATE_TERMS)
@@ -608,7 +676,7 @@ class Engine:
         (collective), with ``acceleration`` as an extra attribute."""
         if self.domain is None:
             return self.particles
-        rows = _distributed().gather_owned(self)
+        rows = self.runner.owned_rows(self)
         out = Particles.from_arrays(rows, rows["id"].size)
         out.acceleration = rows["acceleration"]
         return out
@@ -639,7 +707,7 @@ class Engine:
         if self.domain is None:
             return np.sort(nl.w_particle[live].astype(np.int64))
         ids = self.domain.ids[nl.w_particle[live]]
-        return np.sort(np.concatenate(self.domain.comm.allgather(ids)))
+        return np.sort(self.runner.concatenate(ids))
 
     def memory_bytes(self):
         """nbytes of every per-particle and per-contact array the engine holds, by name."""
@@ -723,8 +791,8 @@ class Engine:
             self.update_wall_forces()
             particles = self.global_particles()
             acceleration = particles.acceleration
-            books = _distributed().reduce_books(self, self._books)
-            jump = self.domain.comm.bcast(self._jump_work)
+            books = self.runner.books(self, self._books)
+            jump = self.runner.broadcast(self._jump_work)
         data = {f"p_{k}": v for k, v in particles.arrays().items()}
         data["n_owned"] = np.int64(particles.n_owned)
         for field in dataclasses.fields(Material):
@@ -748,7 +816,7 @@ class Engine:
                 data[name] = getattr(self, name)
         else:
             data["nl_skin"] = np.float64(self.neighbors.skin)
-            for k, v in _distributed().gather_records(self)._asdict().items():
+            for k, v in self.runner.contact_records(self)._asdict().items():
                 data[f"records_{k}"] = v
         data["gravity"] = self.gravity
         data["acceleration"] = acceleration
@@ -758,10 +826,9 @@ class Engine:
         data["contact_law"] = np.array(self.contact_law)
         data["energy_books"] = books
         data["energy_jump"] = np.array(jump)
-        if self.domain is None or self.domain.comm.rank == 0:
+        if self.runner.is_root:
             np.savez(path, **data)
-        if self.domain is not None:
-            self.domain.comm.Barrier()
+        self.runner.barrier()
 
     @classmethod
     def load_checkpoint(cls, path, comm=None):
@@ -814,7 +881,7 @@ class Engine:
             engine.acceleration = d["acceleration"].copy()
         else:
             engine.acceleration = d["acceleration"][engine.domain.ids].copy()
-            if comm.rank != 0:  # the totals live on rank 0; the others start their sums from zero
+            if not engine.runner.is_root:  # the totals live on the root; the others start their sums from zero
                 flag = books[BOOK_INITIALISED]
                 books[:] = 0.0
                 books[BOOK_INITIALISED] = flag

@@ -103,7 +103,7 @@ def test_sorted_copies_kept_between_windows():
                 mesh.vertices[:, 2] += 1e-7
             engine.run(1 + window % 4)
         if window % 40 == 39:
-            assert spread._copies_hold_state
+            assert spread.copies_hold_state
             assert_identical(snapshot(serial), snapshot(spread))
     assert COMM.allreduce(spread.neighbors.n_builds) > COMM.size
 

@@ -159,7 +159,7 @@ def test_sorted_copies_kept_between_runs_change_no_bit(make, monkeypatch):
             for mesh in engine.facets:  # the FE's motion of the interface between two windows
                 mesh.vertices[:, 2] += 1e-7
             engine.run(n)
-        held += kept._copies_hold_state
+        held += kept.copies_hold_state
         done += n
         windows += 1
         if windows % 5 == 0:
@@ -211,17 +211,16 @@ def test_diverged_particle_stops_the_run_with_the_cause(steps):
 
 def test_the_last_steps_particle_shift_is_the_measured_one():
     """Before a run on sorted copies that hold the state, the rebuild test reads the
-    particles' largest displacement from the last step (``state.CLOCK_PARTICLE_SHIFT``):
+    particles' largest displacement from the last step (``Engine.particle_shift``):
     it is what a pass over the particles measures, to the bit, through list rebuilds."""
     from de_domain.neighbors import max_displacement
-    from de_domain.state import CLOCK_PARTICLE_SHIFT
     engine = loose_pile()
     engine.keep_sorted = True
     shifts = []
     for _ in range(60):
         engine.run(5)
         copies = engine._sorted
-        shifts.append(engine._clock[CLOCK_PARTICLE_SHIFT])
+        shifts.append(engine.particle_shift)
         assert shifts[-1] == max_displacement(copies.pos, copies.ref_pos, copies.pos.shape[0])
     assert engine.neighbors.n_builds > 2 and min(shifts) >= 0.0 and max(shifts) > 0.0
 
@@ -239,7 +238,7 @@ def test_a_wall_given_to_two_engines_starts_each_run_where_the_last_left_it():
     b.run(5)
     a.run(1)
     assert lid.point[2] == pytest.approx(start[2] - 11 * step, rel=0.0, abs=1e-15)
-    assert np.array_equal(a._wall_arrays()[0][5], lid.point)
+    assert np.array_equal(a.boundaries().walls[0][5], lid.point)
     lid.point = start
     b.run(2)
     assert lid.point[2] == pytest.approx(start[2] - 2 * step, rel=0.0, abs=1e-15)
