@@ -92,10 +92,14 @@ def random_cloud(radii, box_min, box_max, seed, max_attempts=200):
     if np.any(hi - lo <= 2 * radii[0]):
         raise ValueError("the box is smaller than the largest sphere")
     rng = np.random.default_rng(seed)
-    trials = rng.random((len(radii), max_attempts, 3))
-    span = (hi - lo)[None, None, :] - 2.0 * radii[:, None, None]
-    candidates = lo[None, None, :] + radii[:, None, None] + trials * span
-    pos, placed = insert_spheres(radii, candidates, lo, hi)
+    inserter = SphereInserter(radii, lo, hi)
+    for start in range(0, len(radii), CANDIDATE_BLOCK):  # the same draws as all at once, a block's memory
+        block = radii[start:start + CANDIDATE_BLOCK]
+        trials = rng.random((len(block), max_attempts, 3))
+        span = (hi - lo)[None, None, :] - 2.0 * block[:, None, None]
+        if inserter.add(lo[None, None, :] + block[:, None, None] + trials * span) < start + len(block):
+            break
+    pos, placed = inserter.pos[:inserter.placed], inserter.placed
     if placed < len(radii):
         solid = 4 / 3 * np.pi * np.sum(radii ** 3) / np.prod(hi - lo)
         raise ValueError(f"could place only {placed} of {len(radii)} spheres without overlap "
@@ -103,29 +107,62 @@ def random_cloud(radii, box_min, box_max, seed, max_attempts=200):
     return pos, radii
 
 
-@nb.njit(cache=True)
+CANDIDATE_BLOCK = 2048  # spheres whose candidate centres are drawn and tried at once
+
+
+class SphereInserter:
+    """Random sequential addition, block after block: sphere i (``radii`` largest first) goes
+    to the first of its candidate centres (inside the box [lo, hi]) that overlaps no sphere
+    placed before, checked in a uniform cell grid (cell = largest diameter). :meth:`add` takes
+    the candidates of the next spheres, so that a caller draws them a block at a time (the
+    memory of one block, not of every sphere's) and gets the placement it would get from all
+    of them at once."""
+
+    def __init__(self, radii, lo, hi):
+        self.radii = np.ascontiguousarray(radii, float)
+        self.lo, self.hi = np.asarray(lo, float), np.asarray(hi, float)
+        cell = 2.0 * self.radii[0]
+        self.dims = np.array([max(1, int((self.hi[a] - self.lo[a]) / cell)) for a in range(3)], np.int64)
+        self.head = -np.ones(int(np.prod(self.dims)), np.int64)
+        self.next = -np.ones(len(self.radii), np.int64)
+        self.pos = np.zeros((len(self.radii), 3))
+        self.placed = 0
+        self.failed = False
+
+    def add(self, candidates):
+        """Place the next ``len(candidates)`` spheres (``candidates[k]``: the centres to try for
+        sphere ``placed + k``, in order); stops at the first sphere none of whose candidates
+        fits (``failed``). Returns the number placed so far."""
+        if self.failed:
+            return self.placed
+        count = _insert(self.radii, np.ascontiguousarray(candidates, float), self.placed, self.pos, self.head,
+                        self.next, self.lo, self.hi, self.dims)
+        self.failed = count < len(candidates)
+        self.placed += count
+        return self.placed
+
+
 def insert_spheres(radii, candidates, lo, hi):
-    """Random sequential addition: sphere i (``radii`` largest first) goes to the first of its
-    ``candidates[i]`` centres (inside the box [lo, hi]) that overlaps no sphere placed before,
-    checked in a uniform cell grid (cell = largest diameter). Stops at the first sphere none
-    of whose candidates fits; returns (positions, number placed)."""
-    n = radii.shape[0]
-    cell = 2.0 * radii[0]
-    dims = np.empty(3, np.int64)
-    for a in range(3):
-        dims[a] = max(1, int((hi[a] - lo[a]) / cell))
-    head = -np.ones(dims[0] * dims[1] * dims[2], np.int64)
-    nxt = -np.ones(n, np.int64)
-    pos = np.zeros((n, 3))
-    placed = 0
-    for i in range(n):
+    """:class:`SphereInserter` with every sphere's candidates at once; returns (positions,
+    number placed)."""
+    inserter = SphereInserter(radii, lo, hi)
+    placed = inserter.add(candidates)
+    return inserter.pos[:placed], placed
+
+
+@nb.njit(cache=True)
+def _insert(radii, candidates, first, pos, head, nxt, lo, hi, dims):
+    """Spheres ``first`` … ``first + len(candidates) − 1`` of :class:`SphereInserter`; returns
+    how many were placed before the first that did not fit."""
+    for k in range(candidates.shape[0]):
+        i = first + k
         r = radii[i]
         ok = False
         for t in range(candidates.shape[1]):
             c = np.empty(3)
             ic = np.empty(3, np.int64)
             for a in range(3):
-                c[a] = candidates[i, t, a]
+                c[a] = candidates[k, t, a]
                 ic[a] = max(0, min(dims[a] - 1, int((c[a] - lo[a]) / (hi[a] - lo[a]) * dims[a])))
             ok = True
             for dx in range(-1, 2):
@@ -148,11 +185,10 @@ def insert_spheres(radii, candidates, lo, hi):
                 key = (ic[0] * dims[1] + ic[1]) * dims[2] + ic[2]
                 nxt[i] = head[key]
                 head[key] = i
-                placed += 1
                 break
         if not ok:
-            break
-    return pos[:placed], placed
+            return k
+    return candidates.shape[0]
 
 
 def save_packing(path, positions, radii, **metadata):

@@ -36,9 +36,7 @@ from de_domain.deposition import (
     _start_friction,
     _unbalanced,
 )
-from de_domain.packing import insert_spheres
-
-CANDIDATE_BLOCK = 2048  # grains whose candidate centres are drawn and checked at once
+from de_domain.packing import CANDIDATE_BLOCK, SphereInserter
 
 
 @dataclass(frozen=True)
@@ -229,15 +227,16 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     faces = np.concatenate([w.triangles for w in walls])
     spacing = 0.5 * float(small.min())
     distance = distance_to(faces, tets, spacing)
-    candidates = np.empty((len(radii), attempts, 3))
-    for start in range(0, len(radii), CANDIDATE_BLOCK):  # in blocks of grains: the memory of one block
+    lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
+    inserter = SphereInserter(small, lo, hi)
+    for start in range(0, len(radii), CANDIDATE_BLOCK):  # drawn and placed a block of grains at a time
         block = slice(start, min(start + CANDIDATE_BLOCK, len(radii)))
         drawn = points_in_tets(tets, (block.stop - start) * attempts, rng).reshape(-1, attempts, 3)
         near = float(small[block].max()) + spacing  # only whether a face is nearer than this matters
         blocked = distance(drawn.reshape(-1, 3), upto=near).reshape(-1, attempts) < small[block, None] + spacing
-        candidates[block] = _free_first(drawn, blocked)
-    lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
-    pos, placed = insert_spheres(small, candidates, lo, hi)
+        if inserter.add(_free_first(drawn, blocked)) < block.stop:
+            break
+    pos, placed = inserter.pos[:inserter.placed], inserter.placed
     if placed < len(radii):
         raise ValueError(f"could place only {placed} of {len(radii)} shrunk grains in the zone (solid fraction "
                          f"{s.cloud_solid_fraction}): the zone is too thin for its grains, or the target e too low")

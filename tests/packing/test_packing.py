@@ -48,6 +48,25 @@ def test_random_cloud_has_no_overlap_and_stays_in_the_box_and_is_reproducible():
     np.testing.assert_array_equal(pos, pos2)
 
 
+def test_spheres_inserted_block_by_block_land_where_all_at_once_puts_them():
+    """The fill draws and places candidate centres a block of spheres at a time (the memory of
+    one block); the placement must be the one of every sphere's candidates at once, up to the
+    first sphere that does not fit, wherever the blocks are cut."""
+    from de_domain.packing import SphereInserter, insert_spheres
+    rng = np.random.default_rng(4)
+    radii = np.sort(rng.uniform(0.8e-3, 1.2e-3, 1500))[::-1]
+    lo, hi = np.zeros(3), np.full(3, 0.018)  # too small for all: the last blocks fail part-way
+    candidates = lo + rng.random((1500, 30, 3)) * (hi - lo)
+    pos, placed = insert_spheres(radii, candidates, lo, hi)
+    assert 100 < placed < 1500
+    for cuts in ([0, 1500], [0, 1, 2, 500, 1500], [0, 77, 154, 1000, 1499, 1500]):
+        inserter = SphereInserter(radii, lo, hi)
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            inserter.add(candidates[a:b])
+        assert inserter.placed == placed and inserter.failed
+        np.testing.assert_array_equal(inserter.pos[:placed], pos)
+
+
 def test_random_cloud_too_dense_is_a_clear_error():
     with pytest.raises(ValueError, match="could place only"):
         random_cloud(np.full(2000, 1e-3), np.zeros(3), np.full(3, 0.02), seed=1)
