@@ -66,7 +66,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 BOX = {5000: 0.038, 20000: 0.076}  # box side L [m] per bed size
-TILED = {80000: 2, 320000: 4}      # beds tiled k × k from the 20k bed
+TILED = {80000: (2, 2), 320000: (4, 4), 1000000: (10, 5)}  # beds tiled kx × ky from the 20k bed
 HEIGHT = 0.06                      # box height [m]
 RADII = (0.0008, 0.0009, 0.0010, 0.0011, 0.0012)  # equal mass fractions
 MATERIAL = dict(density=2650.0, young=5e7, poisson=0.25, friction=0.5, restitution=0.5, stiffness_ratio=4.0)
@@ -103,16 +103,18 @@ def materials():
 
 
 def make_engine(pos, radius, L, dt=DT, gravity=GRAVITY, vel=None, angvel=None, comm=None):
-    """The W1 engine: the spheres in the box [0, L]² × [0, HEIGHT] of six plane walls
-    (over the ranks of ``comm``, if given)."""
+    """The W1 engine: the spheres in the box [0, L]² × [0, HEIGHT] (``L`` a pair: [0, Lx] ×
+    [0, Ly] × [0, HEIGHT]) of six plane walls (over the ranks of ``comm``, if given)."""
     from de_domain import Engine, Particles, PlaneWall
+
+    Lx, Ly = (L, L) if np.isscalar(L) else L
 
     mat = materials()
     p = Particles.from_spheres(pos, radius, materials=mat, velocities=vel)
     if angvel is not None:
         p.angvel[:] = angvel
-    walls = [PlaneWall((0, 0, 0), (1, 0, 0)), PlaneWall((L, 0, 0), (-1, 0, 0)),
-             PlaneWall((0, 0, 0), (0, 1, 0)), PlaneWall((0, L, 0), (0, -1, 0)),
+    walls = [PlaneWall((0, 0, 0), (1, 0, 0)), PlaneWall((Lx, 0, 0), (-1, 0, 0)),
+             PlaneWall((0, 0, 0), (0, 1, 0)), PlaneWall((0, Ly, 0), (0, -1, 0)),
              PlaneWall((0, 0, 0), (0, 0, 1)), PlaneWall((0, 0, HEIGHT), (0, 0, -1))]
     return Engine(p, mat, walls=walls, gravity=(0.0, 0.0, gravity), dt=dt, skin=SKIN, comm=comm)
 
@@ -242,16 +244,16 @@ def _settle_to(n, path):
 
 
 def bed(n, log=print):
-    """(pos, radius, L) of the W1 bed with n = 5000, 20000, 80000 or 320000 (k × k tiling of the 20k bed,
-    k = 2 or 4: copies shifted by L in x and y, walls only on the outer faces, so the copies touch along the
-    former inner walls)."""
+    """(pos, radius, L) of the W1 bed with n = 5000, 20000, 80000, 320000 or 1,000,000 (the 20k bed tiled
+    2 × 2, 4 × 4 or 10 × 5: copies shifted by L in x and y, walls only on the outer faces, so the copies
+    touch along the former inner walls). ``L``: the box side, or (Lx, Ly) for a bed that is not square."""
     if n in TILED:
         pos, radius, L = load_dump(bed_file(20000, log=log))
-        k = TILED[n]
-        tiles = [pos + np.array([ix * L, iy * L, 0.0]) for ix in range(k) for iy in range(k)]
-        return np.concatenate(tiles), np.tile(radius, k * k), k * L
+        kx, ky = TILED[n]
+        tiles = [pos + np.array([ix * L, iy * L, 0.0]) for ix in range(kx) for iy in range(ky)]
+        return np.concatenate(tiles), np.tile(radius, kx * ky), (kx * L if kx == ky else (kx * L, ky * L))
     if n not in BOX:
-        raise ValueError(f"no W1 bed of {n} spheres (5000, 20000, 80000, 320000)")
+        raise ValueError(f"no W1 bed of {n} spheres ({', '.join(str(k) for k in sorted([*BOX, *TILED]))})")
     return load_dump(bed_file(n, log=log))
 
 

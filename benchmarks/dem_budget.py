@@ -13,7 +13,7 @@ One engine per size on the W1 bed (``benchmarks/beds.py``, the work of ``dem_thr
 * **the step's parts alone**, each ``PART_STEPS`` times over every block on the state the
   run left (sorted copies, the lists of its last build; the state is restored after each
   part): region 1 (the pair loop, :func:`de_domain.fused._pair_block`), and region 2 cut
-  into its passes — the j-side gather, the plane walls
+  into its passes — the j-side gather (:func:`de_domain.fused.gather_j_side`), the plane walls
   (:func:`de_domain.walls.plane_wall_contacts`), the leapfrog
   (:func:`de_domain.integrate.integrate_block`) and the displacement scan. Run alone,
   each part has the caches to itself: the parts add up to less than the fused step.
@@ -63,16 +63,10 @@ def _region1(k, settings, particles, params, pairs):
 
 @njit(cache=True)
 def _gather(k, particles, pairs):
-    force, torque, j_start, j_rec = particles.force, particles.torque, pairs.j_start, pairs.j_record
+    n = pairs.perm.size
     for _ in range(k):
-        for s in range(pairs.perm.size):
-            fx = force[s, 0]; fy = force[s, 1]; fz = force[s, 2]
-            tx = torque[s, 0]; ty = torque[s, 1]; tz = torque[s, 2]
-            for q in range(np.uint64(j_start[s]), np.uint64(j_start[s + 1])):
-                fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
-                tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
-            force[s, 0] = fx; force[s, 1] = fy; force[s, 2] = fz
-            torque[s, 0] = tx; torque[s, 1] = ty; torque[s, 2] = tz
+        for first in range(0, n, fused.PBLOCK):
+            fused.gather_j_side(first, min(first + fused.PBLOCK, n), True, particles, pairs)
 
 
 @njit(cache=True)

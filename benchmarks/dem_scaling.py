@@ -5,7 +5,8 @@
 
 Work: the 20,000-sphere W1 bed (benchmarks/beds.py, settled by de_domain) tiled
 2 × 2 (80,000) and 4 × 4 (320,000) in x and y, walls on the outer faces, gravity,
-the W1 contact parameters and Δt = 2e-6 s (benchmarks/dem_throughput.py says which).
+the W1 contact parameters and Δt = 2e-6 s (benchmarks/dem_throughput.py says which); also
+10 × 5 (1,000,000).
 Configurations, interleaved (A/B/C…, then again, ``--repeats`` times; median):
 
 * ours 1 rank × 1 thread and 1 rank × 2 threads: the serial engine (``comm=None``,
@@ -19,7 +20,12 @@ Each run takes one untimed step (list build, cache load), then times ``--steps``
 steps. Printed per configuration: particle-steps/s, speed-up against ours 1 × 1,
 ghosts per rank, bytes each rank sends per step (ghost exchange), list builds, and
 memory per particle including ghosts (``Engine.memory_bytes()`` summed over the
-ranks, / N). The machine's load average is printed before and after.
+ranks, / N); then the set-up (bed loaded and tiled, ``Engine`` made and, at 2 ranks,
+distributed), the first step (the first list build and the kernels loaded), the mean
+list build inside the timed steps (rank 0's), and one ParaView frame
+(:func:`de_domain.io.write_frame`, gathered to rank 0 when distributed): seconds and MB.
+The 1,000,000 bed (the 20k bed tiled 10 × 5) is not square: LIGGGHTS's deck is not run on it.
+The machine's load average is printed before and after.
 """
 from __future__ import annotations
 
@@ -58,17 +64,41 @@ def worker(n, steps, threads):
     from mpi4py import MPI
 
     import de_domain  # noqa: F401  (threading defaults first)
+    from de_domain.io import write_frame
+    from de_domain.neighbors import NeighborList
 
     comm = MPI.COMM_WORLD
     numba.set_num_threads(threads)
+    t_setup = time.perf_counter()
     pos, radius, L = beds.bed(n, log=lambda text: None)
     engine = beds.make_engine(pos, radius, L, comm=comm if comm.size > 1 else None)
+    comm.Barrier()
+    t_first = time.perf_counter()
     engine.run(1)
     comm.Barrier()
     t0 = time.perf_counter()
+    build, timed = NeighborList.build, [0.0, 0]
+
+    def timed_build(*args, **kwargs):  # the list builds inside the timed steps
+        tb = time.perf_counter()
+        try:
+            return build(*args, **kwargs)
+        finally:
+            timed[0] += time.perf_counter() - tb
+            timed[1] += 1
+
+    NeighborList.build = timed_build
     engine.run(steps)
     comm.Barrier()
     wall = time.perf_counter() - t0
+    NeighborList.build = build
+    with tempfile.TemporaryDirectory(prefix="dem_frame_") as tmp:
+        directory = comm.bcast(tmp)  # rank 0's folder (the ranks share the machine)
+        tf = time.perf_counter()
+        paths = write_frame(directory, engine, 0)
+        frame = time.perf_counter() - tf
+        frame_bytes = sum(Path(p).stat().st_size for p in paths) if comm.rank == 0 else 0
+        comm.Barrier()
     memory = comm.allreduce(sum(engine.memory_bytes().values()))
     domain = engine.domain
     ghosts = comm.gather(0 if domain is None else domain.exchange.n_ghosts)
@@ -76,7 +106,9 @@ def worker(n, steps, threads):
     builds = engine.neighbors.n_builds
     if comm.rank == 0:
         print(json.dumps({"rate": n * steps / wall, "wall": wall, "ghosts": ghosts, "sent": sent,
-                          "bytes_per_particle": memory / n, "builds": builds}), flush=True)
+                          "bytes_per_particle": memory / n, "builds": builds, "setup": t_first - t_setup,
+                          "first_step": t0 - t_first, "build_seconds": timed[0], "timed_builds": timed[1],
+                          "frame": frame, "frame_bytes": frame_bytes}), flush=True)
 
 
 def ours(n, steps, ranks, threads, bound=True):
@@ -136,7 +168,8 @@ def main(argv=None):
                    "ours 2 ranks x 1 thread": lambda n=n, s=steps: ours(n, s, 2, 1),
                    "  same, ranks not bound": lambda n=n, s=steps: ours(n, s, 2, 1, bound=False)}
         with tempfile.TemporaryDirectory(prefix="dem_scaling_") as tmp:
-            if peers:
+            square = len(set(beds.TILED.get(n, (1, 1)))) == 1  # the LIGGGHTS deck's box is square
+            if peers and square:
                 L = liggghts_inputs(tmp, n, steps)
                 configs["LIGGGHTS 1 rank"] = lambda n=n, s=steps, L=L: liggghts(tmp, n, s, 1, L)
                 configs["LIGGGHTS 2 ranks"] = lambda n=n, s=steps, L=L: liggghts(tmp, n, s, 2, L)
@@ -158,7 +191,17 @@ def main(argv=None):
             rounds = " ".join(f"{r['rate'] / 1e6:.2f}" for r in results)
             print(f"{name:26s} {rate:17.3e} {rate / base:10.2f}x {ghosts:>14s} {sent:>18s} {memory:>10s} "
                   f"{builds:>6s}  {rounds}")
-        if peers:
+        print(f"{'configuration':26s} {'set-up [s]':>10s} {'first step [s]':>14s} {'list build [s]':>14s} "
+              f"{'frame [s]':>9s} {'frame [MB]':>10s}   (last round; set-up: bed + Engine, first step: its list "
+              "build and kernel loading)")
+        for name, results in runs.items():
+            last = results[-1]
+            if "setup" not in last:
+                continue
+            build = last["build_seconds"] / last["timed_builds"] if last["timed_builds"] else float("nan")
+            print(f"{name:26s} {last['setup']:10.2f} {last['first_step']:14.2f} {build:14.2f} {last['frame']:9.2f} "
+                  f"{last['frame_bytes'] / 1e6:10.1f}")
+        if "LIGGGHTS 2 ranks" in runs:
             lig = statistics.median(r["rate"] for r in runs["LIGGGHTS 2 ranks"])
             two = statistics.median(r["rate"] for r in runs["ours 2 ranks x 1 thread"])
             print(f"ours 2 ranks / LIGGGHTS 2 ranks: {two / lig:.2f}x")

@@ -257,6 +257,30 @@ def _pair_block(b, settings, particles, params, pairs, e1):
 
 
 @njit(cache=True, error_model="numpy")
+def gather_j_side(first, last, in_order, particles, pairs):
+    """Region 2's first pass, over perm positions [first, last): each owned particle's i-side
+    sums of region 1 (in ``particles.force``/``torque``) continued with its j-side records,
+    ascending i (a pair not in contact has a zero record)."""
+    ghost = particles.ghost
+    force = particles.force
+    torque = particles.torque
+    perm = pairs.perm
+    j_start = pairs.j_start
+    j_rec = pairs.j_record
+    for s in range(first, last):
+        i = np.uint64(s) if in_order else np.uint64(perm[s])
+        if ghost[i]:
+            continue
+        fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
+        tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
+        for q in range(np.uint64(j_start[s]), np.uint64(j_start[s + 1])):
+            fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
+            tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
+        force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
+        torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
+
+
+@njit(cache=True, error_model="numpy")
 def _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax):
     """Region 2 work item, the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK),
     in passes over the block: the gather, the plane walls, the facets, then gravity,
@@ -273,27 +297,13 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
     torque = particles.torque
     ref_pos = particles.ref_pos
     perm = pairs.perm
-    j_start = pairs.j_start
-    j_rec = pairs.j_record
     f_start = candidates.start
     particle_index = candidates.particle_index
     has_facets = candidates.triangle.size > 0
     first = b * PBLOCK
     last = min((b + 1) * PBLOCK, perm.size)
     we = np.zeros(N_WALL_ENERGY)
-    for s in range(first, last):
-        i = np.uint64(s) if in_order else np.uint64(perm[s])
-        if ghost[i]:
-            continue
-        # the i-side sums of region 1, continued with the j-side records (ascending i);
-        # a pair not in contact has a zero record
-        fx = force[i, 0]; fy = force[i, 1]; fz = force[i, 2]
-        tx = torque[i, 0]; ty = torque[i, 1]; tz = torque[i, 2]
-        for q in range(np.uint64(j_start[s]), np.uint64(j_start[s + 1])):
-            fx += j_rec[q, 0]; fy += j_rec[q, 1]; fz += j_rec[q, 2]
-            tx += j_rec[q, 3]; ty += j_rec[q, 4]; tz += j_rec[q, 5]
-        force[i, 0] = fx; force[i, 1] = fy; force[i, 2] = fz
-        torque[i, 0] = tx; torque[i, 1] = ty; torque[i, 2] = tz
+    gather_j_side(first, last, in_order, particles, pairs)
     plane_wall_contacts(first, last, settings, particles, params, perm, walls, we)
     if has_facets:  # triangle facets, after the plane walls
         for s in range(first, last):
