@@ -160,7 +160,8 @@ def main(argv=None):
         return
     beds.bed_file(20000)
     peers = not args.no_liggghts and subprocess.run(["which", "liggghts"], capture_output=True).returncode == 0
-    print(f"load average before: {os.getloadavg()[0]:.2f}; LIGGGHTS: {'yes' if peers else 'not installed'}")
+    lig = "yes" if peers else "off (--no-liggghts)" if args.no_liggghts else "not installed"
+    print(f"load average before: {os.getloadavg()[0]:.2f}; LIGGGHTS: {lig}")
     for n in args.sizes:
         steps = args.steps or max(20, int(4e7 // n))
         configs = {"ours 1 rank x 1 thread": lambda n=n, s=steps: ours(n, s, 1, 1),
