@@ -36,13 +36,24 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.apps.embedded_model import (
+    AXES,
+    LoadingRamp,
+    Roles,
+    build_fe,
+    grain_materials,
+    lining_columns,
+    lining_gauges,
+    roller_axis,
+    sections,
+    write_sections,
+)
 from cosim.errors import CaseError
 from cosim.outputs import (
     CsvSeries,
     ProgressLine,
     PvdCollection,
     atomic_write_npz,
-    atomic_write_text,
     compilation_seconds,
     is_root,
     mpi_comm,
@@ -54,41 +65,9 @@ FRAMES = 5  # ParaView frames over the loading
 STATE = "embedded_state.json"  # the loading loop's state at the last checkpoint (with checkpoint.npz)
 LOADING_START = "loading_start.npz"  # every grain's position when the loading began
 RELEASE_FRACTION = 0.02  # the lid is lifted until it carries this x the self-weight stress at the zone's bottom
-AXES = "xyz"
 
 
 # --------------------------------------------------------------------------- inputs
-@dataclass(frozen=True)
-class Roles:
-    """The groups of the case by what they are in this model: grain volumes, FE volumes
-    {group: EmbeddedVolume}, surfaces {group: EmbeddedSurface}, rigid bodies."""
-    grains: list
-    fe: dict
-    surfaces: dict
-    rigid: list
-
-    @classmethod
-    def of(cls, em):
-        if em.model == "fe":  # the zones are soil like the first 'soil' volume
-            soil = next(v for v in em.volumes if v.role == "soil")
-            fe = {v.group: soil.model_copy(update={"group": v.group}) if v.role == "zone" else v for v in em.volumes}
-            return cls([], fe, {s.group: s for s in em.surfaces}, [])
-        grains = [v.group for v in em.volumes if v.role == "zone" or (v.role == "soil" and em.model == "dem")]
-        fe = {v.group: v for v in em.volumes if v.group not in grains}
-        return cls(grains, fe, {s.group: s for s in em.surfaces}, list(em.rigid))
-
-
-class LoadingRamp:
-    """A load's amplitude that is 0 until the loading starts, then rises linearly to 1 over the
-    loading: ``start`` is set when the loading starts (or from the checkpoint on resume)."""
-
-    def __init__(self, duration):
-        self.duration, self.start = duration, None
-
-    def __call__(self, t):
-        return 0.0 if self.start is None else min(max((t - self.start) / self.duration, 0.0), 1.0)
-
-
 def mesh_file(case, case_path):
     """The model's path: relative to the case file, else in meshes/."""
     from cosim.case.paths import resolve_path
@@ -196,25 +175,9 @@ def _key_of_group(em, name):
     return "embedded.volumes"
 
 
-def roller_axis(triangles):
-    """The axis (0, 1, 2) every triangle of a surface is normal to, or None."""
-    n = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    n = n / np.linalg.norm(n, axis=1)[:, None]
-    for axis in range(3):
-        if np.all(np.abs(np.abs(n[:, axis]) - 1.0) < 1e-6):
-            return axis
-    return None
 
 
 # --------------------------------------------------------------------------- fill
-def _materials(case):
-    from cosim.apps.dem import materials_of
-    em = case.embedded
-    names = [em.sand_material, em.interface_material, em.lid_material] + [m.name for m in case.dem.materials]
-    mats, *ids = materials_of(case.dem, *names)
-    return mats, {name: i for name, i in zip(names, ids, strict=True)}
-
-
 def container(case, split, mats, ids):
     """The walls that hold the grains while they are filled in (:class:`ContainerWall`): the
     interface, and every free face of the zone by its surface's role — a rigid body's or a DEM
@@ -249,7 +212,7 @@ def fill(case, built, out_dir, name):
     from de_domain.packing import save_packing
     from de_domain.zone_fill import fill_zone, tets_volume
     sp, split = case.specimen, built["split"]
-    mats, ids = _materials(case)
+    mats, ids = grain_materials(case)
     volume = tets_volume(split.zone.tets)
     if "packing" in built:
         positions, radii = built["packing"]
@@ -306,7 +269,7 @@ def build_model(case, built, positions, radii, ramp):
     from de_domain.zone_fill import facet_mesh, planar_walls, tets_volume
     em, split = case.embedded, built["split"]
     roles = Roles.of(em)
-    mats, ids = _materials(case)
+    mats, ids = grain_materials(case)
     particles = Particles.from_spheres(positions, radii, np.full(len(radii), ids[em.sand_material], np.int32), mats)
     bodies = rigid_bodies(case, split, ids)
     for mesh, body in zip(bodies, em.rigid, strict=True):
@@ -417,7 +380,7 @@ def resumed_model(case, case_path, out_dir, built, state, ramp):
     bodies = engine.facets[:len(em.rigid)]  # rigid bodies first (build_model)
     if split.fe is None:
         return Model(engine), bodies
-    _, ids = _materials(case)
+    _, ids = grain_materials(case)
     solid = build_fe(case, split, Roles.of(em), state["soil_density"], ramp)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
     restore_fe(solid, interface, engine, case_path, out_dir)
@@ -425,103 +388,17 @@ def resumed_model(case, case_path, out_dir, built, state, ramp):
                  state["soil_density"]), bodies
 
 
-def build_fe(case, split, roles, bulk_density, ramp=None):
-    """The FE volumes on the split mesh: a material per volume (soil without ρ: the packing's
-    bulk density), supports from the surfaces' ``fe`` roles, gravity, the geostatic stress of
-    the soil volumes given K0 (:func:`geostatic_loads`), the linings' contraction over the
-    loading (amplitude ``ramp``, :class:`LoadingRamp`), local damping."""
-    from fe_domain.boundary import Contraction
-    from fe_domain.build import build_solid
-    from fe_domain.explicit import stable_alpha_tau
-    materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density, "inertia_scale": v.inertia_scale}
-                 for g, v in roles.fe.items()}
-    supports = []
-    for group, s in roles.surfaces.items():
-        if group not in split.fe.groups or s.fe == "free":
-            continue
-        components = [0, 1, 2] if s.fe == "fixed" else [roller_axis(split.surfaces[group])]
-        supports.append({"type": "fixed", "boundary": group, "components": components})
-    nu = max(v.nu for v in roles.fe.values())
-    gravity = {"type": "body_force", "acceleration": list(case.dem.gravity)}
-    return build_solid(split.fe, material=materials, boundary_conditions=supports,
-                       loads=[gravity, *geostatic_loads(case, split, roles),
-                              *[Contraction(0.5 * lining.volume_loss, lining.axis, (lining.volume,), ramp)
-                                for lining in case.embedded.linings if lining.volume_loss > 0]],
-                       damping={"type": "local", "alpha": case.embedded.damping} if case.embedded.damping else None,
-                       formulation=case.embedded.formulation, alpha_tau=stable_alpha_tau(nu),
-                       safety_factor=case.time.safety_factor)
-
-
-def geostatic_loads(case, split, roles):
-    """The initial stress of each FE soil volume given K0 (``fe_domain.build`` "geostatic"
-    tables): level ground through the model's highest point along −g (of the zone and the FE
-    soil volumes, every rank's), the overburden of the volume's own density."""
-    from mpi4py import MPI
-    given = {group: v.K0 for group, v in roles.fe.items() if v.role == "soil" and v.K0 is not None}
-    if not given:
-        return []
-    up = -np.asarray(case.dem.gravity, dtype=float) / np.linalg.norm(case.dem.gravity)
-    coordinates = split.fe.mesh.geometry.x
-    cells = np.concatenate([split.fe.cells(g) for g in given])
-    vertices = split.fe.mesh.geometry.dofmap.array.reshape(-1, 4)[cells].ravel()
-    heights = [coordinates[vertices] @ up, split.zone.tets.reshape(-1, 3) @ up]
-    local = max((float(h.max()) for h in heights if len(h)), default=-np.inf)
-    height = split.fe.mesh.comm.allreduce(local, op=MPI.MAX)
-    ground = list(height * up)
-    return [{"type": "geostatic", "acceleration": list(case.dem.gravity), "ground": ground, "K0": k0,
-             "groups": [group]} for group, k0 in given.items()]
 
 
 # --------------------------------------------------------------------------- loading
-#: where series.csv reads each lining's thrust and moment: degrees from the crown
-LINING_GAUGES = {"crown": 5.0, "springline": 90.0, "invert": 175.0}
-LINING_SPACING = 5.0  # degrees between the cuts of <volume>_sections.csv
-
-
-@dataclass(frozen=True)
-class LiningGauge:
-    """What is read from a lining each row: its section forces and its diameters
-    (:class:`fe_domain.lining.SectionGauge`, :class:`fe_domain.lining.DiameterGauge`)."""
-    sections: object
-    diameters: object
-
-    @property
-    def ring(self):
-        return self.sections.ring
-
-    def row(self):
-        """The lining's values of a series.csv row (:func:`lining_columns`); collective."""
-        forces = self.sections.forces(list(LINING_GAUGES.values()))
-        return [*forces.thrust, *forces.moment, *self.diameters.changes()]
-
-
-def lining_gauges(case, solid):
-    """A :class:`LiningGauge` per lining of ``solid`` (its ring found from its cells, θ from the
-    crown, up = −g); collective."""
-    from fe_domain.lining import DiameterGauge, SectionGauge, ring_of_cells
-    up = -np.asarray(case.dem.gravity, float)
-    gauges = []
-    for lining in case.embedded.linings:
-        ring = ring_of_cells(solid, lining.volume, lining.centre, lining.axis, up)
-        gauges.append(LiningGauge(SectionGauge(solid, lining.volume, ring), DiameterGauge(solid, lining.volume, ring)))
-    return gauges
-
-
 def columns(rigid, linings=()):
     """series.csv columns: per rigid body its motion, force and moment; per lining its thrust and
-    moment at the crown, springline and invert (:data:`LINING_GAUGES`); the interface force."""
+    moment at the crown, springline and invert (:data:`cosim.apps.embedded_model.LINING_GAUGES`); the interface
+    force."""
     per_body = [f"{r.name}_{q}" for r in rigid for q in
                 ("displacement", "rotation", *(f"force_{a}" for a in AXES), *(f"moment_{a}" for a in AXES))]
     return ["time", *per_body, *lining_columns(linings), *(f"interface_force_{a}" for a in AXES),
             "unbalanced_force_ratio", "step"]
-
-
-def lining_columns(linings):
-    """series.csv columns of the linings: thrust and moment at each of :data:`LINING_GAUGES`, the
-    change of the vertical and horizontal inside diameters over the diameter (lengthening +)."""
-    return [name for lining in linings for name in
-            [f"{lining.volume}_{q}_{where}" for q in ("thrust", "moment") for where in LINING_GAUGES]
-            + [f"{lining.volume}_diameter_change_{d}" for d in ("vertical", "horizontal")]]
 
 
 def rotation_matrix(axis_angle):
@@ -631,21 +508,6 @@ def load(case, model, bodies, rigid, references, out_dir, name, state, ramp, res
     return read_series(out_dir / "series.csv")
 
 
-def sections(gauge):
-    """{angle_deg, thrust, moment} lists of a lining every LINING_SPACING degrees; collective."""
-    forces = gauge.sections.forces(gauge.sections.angles_deg(LINING_SPACING))
-    return {"angle_deg": forces.angle_deg.tolist(), "thrust": forces.thrust.tolist(), "moment": forces.moment.tolist()}
-
-
-def write_sections(path, at_rest, end):
-    """<volume>_sections.csv (rank 0): per cut angle from the crown the thrust (N/m, compression +)
-    and moment (N·m/m, intrados in tension +) at rest and at the end of the loading."""
-    if not is_root():
-        return
-    header = "angle_deg,thrust_at_rest,moment_at_rest,thrust_end,moment_end\n"
-    lines = [f"{a:.6g},{n0:.9g},{m0:.9g},{n1:.9g},{m1:.9g}" for a, n0, m0, n1, m1 in
-             zip(end["angle_deg"], at_rest["thrust"], at_rest["moment"], end["thrust"], end["moment"], strict=True)]
-    atomic_write_text(path, header + "\n".join(lines) + "\n")
 
 
 # --------------------------------------------------------------------------- run
@@ -697,7 +559,7 @@ def simulate(prepared):
     write_run_metadata(out_dir, prepared.case_path, prepared.resolved, case.case.seed)
     name = f"{case.case.name}/{em.model}"
     compiling_before = compilation_seconds()
-    _, ids = _materials(case)
+    _, ids = grain_materials(case)
     unmoved = [b.vertices.copy() for b in rigid_bodies(case, prepared.built["split"], ids)]
     ramp = LoadingRamp(em.loading_time)  # the linings' contraction: from the loading's start
     if prepared.resume:

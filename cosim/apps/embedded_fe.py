@@ -16,11 +16,11 @@ import json
 import time
 from pathlib import Path
 
-from cosim.apps.embedded import (
+from cosim.apps.embedded_model import (
     LoadingRamp,
     Roles,
-    _materials,
     build_fe,
+    grain_materials,
     lining_columns,
     lining_gauges,
     sections,
@@ -36,7 +36,7 @@ def bulk_density(case):
     soil = next(v for v in em.volumes if v.role == "soil")
     if soil.rho is not None:
         return soil.rho
-    mats, ids = _materials(case)
+    mats, ids = grain_materials(case)
     return float(mats[ids[em.sand_material]].density) / (1.0 + case.specimen.void_ratio)
 
 

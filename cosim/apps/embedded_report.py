@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.apps.embedded import AXES
+from cosim.apps.embedded_model import AXES
 from cosim.outputs import atomic_write_text, mpi_comm, say
 
 

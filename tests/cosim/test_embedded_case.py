@@ -85,9 +85,9 @@ def test_fe_soil_given_k0_starts_at_rest(coupled, coupled_k0):
 
 
 def test_a_lining_contracts_from_the_loadings_start():
-    """The linings' contraction amplitude (embedded.LoadingRamp): 0 until the loading starts, then
+    """The linings' contraction amplitude (embedded_model.LoadingRamp): 0 until the loading starts, then
     linear to 1 over the loading, and held."""
-    from cosim.apps.embedded import LoadingRamp
+    from cosim.apps.embedded_model import LoadingRamp
     ramp = LoadingRamp(0.5)
     assert ramp(10.0) == 0.0                       # the loading has not started
     ramp.start = 2.0

@@ -175,7 +175,7 @@ def test_the_trench_interface_is_closed_and_the_fe_lies_behind_it():
     is set by the element size)."""
     from mpi4py import MPI
 
-    from cosim.apps import embedded
+    from cosim.apps import embedded, embedded_model
     from cosim.apps.footing import Geometry, as_embedded
     from cosim.case import load_case
     from fe_domain.zone_model import split_model
@@ -206,7 +206,7 @@ def test_the_trench_interface_is_closed_and_the_fe_lies_behind_it():
     unit = normal / np.linalg.norm(normal, axis=1)[:, None]
     eps = 1e-4
     assert np.all(in_cavity(centre + eps * unit)) and not np.any(in_cavity(centre - eps * unit))
-    solid = embedded.build_fe(as_embedded(case), split, embedded.Roles.of(em), 1500.0)
+    solid = embedded_model.build_fe(as_embedded(case), split, embedded_model.Roles.of(em), 1500.0)
     assert solid.h_cells.min() > 0.2 * case.soil.interface_mesh_size  # smallest altitude of a tetrahedron
 
 

@@ -1,0 +1,163 @@
+"""What the ``embedded`` kind's models share (:mod:`cosim.apps.embedded` — the coupled model and
+its all-DEM twin —, :mod:`cosim.apps.embedded_fe` — the FE-only twin — and the report,
+:mod:`cosim.apps.embedded_report`): the roles of the model's groups, the loading's ramp, the
+grains' materials, the FE volumes with their supports and initial stress, and the linings'
+gauges and sections. Kept apart so that the run and its twins import it, not each other."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cosim.outputs import atomic_write_text, is_root
+
+AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Roles:
+    """The groups of the case by what they are in this model: grain volumes, FE volumes
+    {group: EmbeddedVolume}, surfaces {group: EmbeddedSurface}, rigid bodies."""
+    grains: list
+    fe: dict
+    surfaces: dict
+    rigid: list
+
+    @classmethod
+    def of(cls, em):
+        if em.model == "fe":  # the zones are soil like the first 'soil' volume
+            soil = next(v for v in em.volumes if v.role == "soil")
+            fe = {v.group: soil.model_copy(update={"group": v.group}) if v.role == "zone" else v for v in em.volumes}
+            return cls([], fe, {s.group: s for s in em.surfaces}, [])
+        grains = [v.group for v in em.volumes if v.role == "zone" or (v.role == "soil" and em.model == "dem")]
+        fe = {v.group: v for v in em.volumes if v.group not in grains}
+        return cls(grains, fe, {s.group: s for s in em.surfaces}, list(em.rigid))
+
+
+class LoadingRamp:
+    """A load's amplitude that is 0 until the loading starts, then rises linearly to 1 over the
+    loading: ``start`` is set when the loading starts (or from the checkpoint on resume)."""
+
+    def __init__(self, duration):
+        self.duration, self.start = duration, None
+
+    def __call__(self, t):
+        return 0.0 if self.start is None else min(max((t - self.start) / self.duration, 0.0), 1.0)
+
+def roller_axis(triangles):
+    """The axis (0, 1, 2) every triangle of a surface is normal to, or None."""
+    n = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    n = n / np.linalg.norm(n, axis=1)[:, None]
+    for axis in range(3):
+        if np.all(np.abs(np.abs(n[:, axis]) - 1.0) < 1e-6):
+            return axis
+    return None
+
+def grain_materials(case):
+    from cosim.apps.dem import materials_of
+    em = case.embedded
+    names = [em.sand_material, em.interface_material, em.lid_material] + [m.name for m in case.dem.materials]
+    mats, *ids = materials_of(case.dem, *names)
+    return mats, {name: i for name, i in zip(names, ids, strict=True)}
+
+def build_fe(case, split, roles, bulk_density, ramp=None):
+    """The FE volumes on the split mesh: a material per volume (soil without ρ: the packing's
+    bulk density), supports from the surfaces' ``fe`` roles, gravity, the geostatic stress of
+    the soil volumes given K0 (:func:`geostatic_loads`), the linings' contraction over the
+    loading (amplitude ``ramp``, :class:`LoadingRamp`), local damping."""
+    from fe_domain.boundary import Contraction
+    from fe_domain.build import build_solid
+    from fe_domain.explicit import stable_alpha_tau
+    materials = {g: {"E": v.E, "nu": v.nu, "rho": v.rho or bulk_density, "inertia_scale": v.inertia_scale}
+                 for g, v in roles.fe.items()}
+    supports = []
+    for group, s in roles.surfaces.items():
+        if group not in split.fe.groups or s.fe == "free":
+            continue
+        components = [0, 1, 2] if s.fe == "fixed" else [roller_axis(split.surfaces[group])]
+        supports.append({"type": "fixed", "boundary": group, "components": components})
+    nu = max(v.nu for v in roles.fe.values())
+    gravity = {"type": "body_force", "acceleration": list(case.dem.gravity)}
+    return build_solid(split.fe, material=materials, boundary_conditions=supports,
+                       loads=[gravity, *geostatic_loads(case, split, roles),
+                              *[Contraction(0.5 * lining.volume_loss, lining.axis, (lining.volume,), ramp)
+                                for lining in case.embedded.linings if lining.volume_loss > 0]],
+                       damping={"type": "local", "alpha": case.embedded.damping} if case.embedded.damping else None,
+                       formulation=case.embedded.formulation, alpha_tau=stable_alpha_tau(nu),
+                       safety_factor=case.time.safety_factor)
+
+
+def geostatic_loads(case, split, roles):
+    """The initial stress of each FE soil volume given K0 (``fe_domain.build`` "geostatic"
+    tables): level ground through the model's highest point along −g (of the zone and the FE
+    soil volumes, every rank's), the overburden of the volume's own density."""
+    from mpi4py import MPI
+    given = {group: v.K0 for group, v in roles.fe.items() if v.role == "soil" and v.K0 is not None}
+    if not given:
+        return []
+    up = -np.asarray(case.dem.gravity, dtype=float) / np.linalg.norm(case.dem.gravity)
+    coordinates = split.fe.mesh.geometry.x
+    cells = np.concatenate([split.fe.cells(g) for g in given])
+    vertices = split.fe.mesh.geometry.dofmap.array.reshape(-1, 4)[cells].ravel()
+    heights = [coordinates[vertices] @ up, split.zone.tets.reshape(-1, 3) @ up]
+    local = max((float(h.max()) for h in heights if len(h)), default=-np.inf)
+    height = split.fe.mesh.comm.allreduce(local, op=MPI.MAX)
+    ground = list(height * up)
+    return [{"type": "geostatic", "acceleration": list(case.dem.gravity), "ground": ground, "K0": k0,
+             "groups": [group]} for group, k0 in given.items()]
+
+#: where series.csv reads each lining's thrust and moment: degrees from the crown
+LINING_GAUGES = {"crown": 5.0, "springline": 90.0, "invert": 175.0}
+LINING_SPACING = 5.0  # degrees between the cuts of <volume>_sections.csv
+
+
+@dataclass(frozen=True)
+class LiningGauge:
+    """What is read from a lining each row: its section forces and its diameters
+    (:class:`fe_domain.lining.SectionGauge`, :class:`fe_domain.lining.DiameterGauge`)."""
+    sections: object
+    diameters: object
+
+    @property
+    def ring(self):
+        return self.sections.ring
+
+    def row(self):
+        """The lining's values of a series.csv row (:func:`lining_columns`); collective."""
+        forces = self.sections.forces(list(LINING_GAUGES.values()))
+        return [*forces.thrust, *forces.moment, *self.diameters.changes()]
+
+
+def lining_gauges(case, solid):
+    """A :class:`LiningGauge` per lining of ``solid`` (its ring found from its cells, θ from the
+    crown, up = −g); collective."""
+    from fe_domain.lining import DiameterGauge, SectionGauge, ring_of_cells
+    up = -np.asarray(case.dem.gravity, float)
+    gauges = []
+    for lining in case.embedded.linings:
+        ring = ring_of_cells(solid, lining.volume, lining.centre, lining.axis, up)
+        gauges.append(LiningGauge(SectionGauge(solid, lining.volume, ring), DiameterGauge(solid, lining.volume, ring)))
+    return gauges
+
+def lining_columns(linings):
+    """series.csv columns of the linings: thrust and moment at each of :data:`LINING_GAUGES`, the
+    change of the vertical and horizontal inside diameters over the diameter (lengthening +)."""
+    return [name for lining in linings for name in
+            [f"{lining.volume}_{q}_{where}" for q in ("thrust", "moment") for where in LINING_GAUGES]
+            + [f"{lining.volume}_diameter_change_{d}" for d in ("vertical", "horizontal")]]
+
+def sections(gauge):
+    """{angle_deg, thrust, moment} lists of a lining every LINING_SPACING degrees; collective."""
+    forces = gauge.sections.forces(gauge.sections.angles_deg(LINING_SPACING))
+    return {"angle_deg": forces.angle_deg.tolist(), "thrust": forces.thrust.tolist(), "moment": forces.moment.tolist()}
+
+
+def write_sections(path, at_rest, end):
+    """<volume>_sections.csv (rank 0): per cut angle from the crown the thrust (N/m, compression +)
+    and moment (N·m/m, intrados in tension +) at rest and at the end of the loading."""
+    if not is_root():
+        return
+    header = "angle_deg,thrust_at_rest,moment_at_rest,thrust_end,moment_end\n"
+    lines = [f"{a:.6g},{n0:.9g},{m0:.9g},{n1:.9g},{m1:.9g}" for a, n0, m0, n1, m1 in
+             zip(end["angle_deg"], at_rest["thrust"], at_rest["moment"], end["thrust"], end["moment"], strict=True)]
+    atomic_write_text(path, header + "\n".join(lines) + "\n")
