@@ -22,7 +22,7 @@ subprocess in a temporary directory holding copies of those files:
   NewtonIntegrator damping 0.2), runs 1000 steps, then times 2000 (it prints
   particle-steps/s).
 * de_domain, 1 and 2 Numba threads: ``dem_throughput.measure`` (the same dump,
-  2000 steps after one untimed step).
+  2000 steps after ``SORTED_MIN_STEPS`` untimed ones).
 
 Each configuration runs ``--repeats`` times (median). The table prints the rates
 and the ratios ours/LIGGGHTS and ours/YADE at equal core count, and the machine's
