@@ -133,10 +133,10 @@ def _floor(k, pos, vel, radius, mass, i_start, pair_js, stiffness, damping, dt):
 
 class Stopwatch:
     """Replaces ``owner.name`` (a module's function or a class's method) by a wrapper that adds
-    the wall time of its calls to ``self.seconds``."""
+    the wall time of its calls to ``self.seconds`` and counts them in ``self.calls``."""
 
     def __init__(self, owner, name):
-        self.owner, self.name, self.inner, self.seconds = owner, name, getattr(owner, name), 0.0
+        self.owner, self.name, self.inner, self.seconds, self.calls = owner, name, getattr(owner, name), 0.0, 0
 
         def timed(*args, **kwargs):
             t0 = time.perf_counter()
@@ -144,6 +144,7 @@ class Stopwatch:
                 return self.inner(*args, **kwargs)
             finally:
                 self.seconds += time.perf_counter() - t0
+                self.calls += 1
 
         setattr(owner, name, timed)
 

@@ -61,6 +61,7 @@ TIMEOUT = 3600
 def worker(n, steps, threads):
     """One configuration, in this process (rank 0 prints one JSON line)."""
     import numba
+    from dem_budget import Stopwatch
     from mpi4py import MPI
 
     import de_domain  # noqa: F401  (threading defaults first)
@@ -77,21 +78,11 @@ def worker(n, steps, threads):
     engine.run(1)
     comm.Barrier()
     t0 = time.perf_counter()
-    build, timed = NeighborList.build, [0.0, 0]
-
-    def timed_build(*args, **kwargs):  # the list builds inside the timed steps
-        tb = time.perf_counter()
-        try:
-            return build(*args, **kwargs)
-        finally:
-            timed[0] += time.perf_counter() - tb
-            timed[1] += 1
-
-    NeighborList.build = timed_build
+    builds_timed = Stopwatch(NeighborList, "build")  # the list builds inside the timed steps
     engine.run(steps)
     comm.Barrier()
     wall = time.perf_counter() - t0
-    NeighborList.build = build
+    builds_timed.restore()
     with tempfile.TemporaryDirectory(prefix="dem_frame_") as tmp:
         directory = comm.bcast(tmp)  # rank 0's folder (the ranks share the machine)
         tf = time.perf_counter()
@@ -107,7 +98,8 @@ def worker(n, steps, threads):
     if comm.rank == 0:
         print(json.dumps({"rate": n * steps / wall, "wall": wall, "ghosts": ghosts, "sent": sent,
                           "bytes_per_particle": memory / n, "builds": builds, "setup": t_first - t_setup,
-                          "first_step": t0 - t_first, "build_seconds": timed[0], "timed_builds": timed[1],
+                          "first_step": t0 - t_first, "build_seconds": builds_timed.seconds,
+                          "timed_builds": builds_timed.calls,
                           "frame": frame, "frame_bytes": frame_bytes}), flush=True)
 
 
