@@ -451,6 +451,20 @@ def boundary_jumps(wall_point, wall_known, vertices, vertices_known, vertex_forc
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
+def _pair_region(nb, settings, particles, params, pairs, e1):
+    """Region 1 of a step: :func:`_pair_block` over the blocks, in parallel."""
+    for b in prange(nb):
+        _pair_block(b, settings, particles, params, pairs, e1)
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax):
+    """Region 2 of a step: :func:`_particle_block` over the blocks, in parallel."""
+    for b in prange(nb):
+        _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax)
+
+
+@njit(cache=True, error_model="numpy")
 def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, books, clock):
     """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the
     next step. ``clock``: ``state.CLOCK_TIME``, ``CLOCK_STEPS`` (steps done),
@@ -459,6 +473,14 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
     boundaries moved (:func:`_move_boundaries`) and the rebuild test (particles, walls
     and vertices against their positions at the last build). Returns whether a
     rebuild is due.
+
+    The two parallel regions are functions of their own (:func:`_pair_region`,
+    :func:`_particle_region`), not ``prange`` loops inside this step loop: Numba 0.56 puts
+    each parallel loop's schedule on the stack of the function that runs it, with a
+    variable size, and never releases it until that function returns — inside a loop of
+    steps the stack grew by ≈ 120 bytes a step (2 threads) and a run of 2 spheres at
+    rest crashed after 50,000–100,000 steps in one call (numba issue 9029, fixed in
+    0.59). A called function's stack is released when it returns.
     """
     n = pairs.perm.size
     nb = (n + PBLOCK - 1) // PBLOCK
@@ -470,10 +492,8 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
     boundary = np.empty(N_WALL_ENERGY)
     integration = np.empty(N_INTEGRATION)
     for _ in range(nsteps):
-        for b in prange(nb):
-            _pair_block(b, settings, particles, params, pairs, e1)
-        for b in prange(nb):
-            _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax)
+        _pair_region(nb, settings, particles, params, pairs, e1)
+        _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax)
         contact[:] = 0.0
         boundary[:] = 0.0
         integration[:] = 0.0
