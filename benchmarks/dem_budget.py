@@ -80,11 +80,11 @@ def _walls(k, settings, particles, params, pairs, walls):
 
 
 @njit(cache=True)
-def _leapfrog(k, settings, particles, pairs):
+def _leapfrog(k, settings, particles, pairs, clumps):
     n = pairs.perm.size
     for _ in range(k):
         for first in range(0, n, fused.PBLOCK):
-            integrate_block(first, min(first + fused.PBLOCK, n), settings, particles, pairs.perm,
+            integrate_block(first, min(first + fused.PBLOCK, n), settings, particles, pairs.perm, clumps.member_of,
                             IntegrationTerms(0.0, 0.0, 0.0, 0.0, 0.0))
 
 
@@ -188,7 +188,7 @@ def budget(n, threads):
 
     numba.set_num_threads(1)
     engine.keep_sorted = True
-    (settings, particles, params, pairs, walls, _, _), _, _ = engine.start_external_run()
+    (settings, particles, params, pairs, walls, _, _, clumps), _, _ = engine.start_external_run()
     m = pairs.pair_js.size
     contacts = int(np.count_nonzero(pairs.overlap > 0.0))
     saved = _snapshot(particles, pairs)
@@ -196,7 +196,7 @@ def budget(n, threads):
     for name, fn, args in (("region 1: pair loop", _region1, (settings, particles, params, pairs)),
                            ("region 2: j-side gather", _gather, (particles, pairs)),
                            ("region 2: plane walls", _walls, (settings, particles, params, pairs, walls)),
-                           ("region 2: leapfrog", _leapfrog, (settings, particles, pairs)),
+                           ("region 2: leapfrog", _leapfrog, (settings, particles, pairs, clumps)),
                            ("region 2: displacement scan", _displacement, (particles,))):
         parts[name] = _timed(fn, *args)
         _restore(saved, particles, pairs)

@@ -157,10 +157,10 @@ def _rebuild_due(settings, particles, walls, meshes, clock):
 
 @njit(cache=True, error_model="numpy")
 def coupled_steps(n_fe, subcycles, fe, interface, dem, books, clock, status):
-    """Up to ``n_fe`` FE steps of the schedule; ``dem``: the seven named tuples of
+    """Up to ``n_fe`` FE steps of the schedule; ``dem``: the eight named tuples of
     :func:`de_domain.fused.advance`. Fills ``status`` (slots ``DONE_FE_STEPS`` …) and
     returns the DEM steps done."""
-    settings, particles, params, pairs, walls, meshes, candidates = dem
+    settings, particles, params, pairs, walls, meshes, candidates, clumps = dem
     status[:] = 0
     dem_steps = 0
     for s in range(n_fe):
@@ -171,7 +171,7 @@ def coupled_steps(n_fe, subcycles, fe, interface, dem, books, clock, status):
             status[OPEN_WINDOW] = 1
             return dem_steps
         clock[CLOCK_STEPS] = 0.0
-        due = advance(subcycles, settings, particles, params, pairs, walls, meshes, candidates, books, clock)
+        due = advance(subcycles, settings, particles, params, pairs, walls, meshes, candidates, clumps, books, clock)
         done = int(clock[CLOCK_STEPS])
         dem_steps += done
         if done < subcycles:

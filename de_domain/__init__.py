@@ -26,17 +26,22 @@ stiffness_ratio=1.5, rolling_stiffness=0.0, rolling_friction=0.0)``
 
 ``Engine(particles, materials, walls=(), facets=(), contact_law="linear"|"hertz",
 gravity=(0, 0, -9.81), dt=None, safety_factor=0.3, local_damping=0.0,
-viscous_damping=0.0, skin=None)``
+viscous_damping=0.0, skin=None, comm=None, clumps=None)``
     ``.step()``, ``.run(nsteps)``, ``.time``, ``.step_count``, ``.dt``,
     ``.critical_timestep()``, ``.energy()`` (dict incl. ``residual``),
     ``.contacts()`` (dict of arrays), ``.memory_bytes()``, ``.save_checkpoint(path)``,
     ``Engine.load_checkpoint(path)``.
 
+``de_domain.clumps``: ``ClumpTemplate(centres, radii)`` (mass properties of the union of the
+members, principal frame), ``ClumpTemplate.line(count, aspect_ratio, radius)``,
+``Clumps.place(templates, template_of, centres, orientations, materials, ...)`` → (particles,
+clumps) for ``Engine(..., clumps=clumps)`` (one process; docs/design.md §2.19).
+
 ``de_domain.diagnostics`` (each takes the engine, some a region): ``unbalanced_force_ratio``, ``kinetic_energy``,
 ``coordination_number``, ``solid_volume``, ``porosity``, ``void_ratio``,
 ``love_weber_stress`` with ``BoxRegion(lo, hi)`` / ``SphereRegion(center, radius)``.
 
-``de_domain.io``: ``write_particles_vtu(path, particles)``, ``write_facets_vtu(path, mesh)``,
+``de_domain.io``: ``write_particles_vtu(path, particles, clump=None)``, ``write_facets_vtu(path, mesh)``,
 ``write_frame(directory, engine, step)``.
 
 Performance notes: ``Engine.run(n)`` is one compiled loop (``de_domain.fused``) with

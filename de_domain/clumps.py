@@ -18,6 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from .materials import material_arrays
+from .particles import ARRAY_FIELDS, Particles
+from .rigid import to_body, to_space
+
 #: grid points per side of the (y, z) integration
 GRID = 400
 
@@ -193,3 +197,111 @@ def check_members(centres, radii):
         apart = int(np.flatnonzero(~reached)[0])
         raise ValueError(f"member {apart} of the clump template does not touch the others: the members of a "
                          "clump must overlap or touch, as one body")
+
+
+class Clumps:
+    """Rigid clumps of member spheres (docs/design.md §2.19), over the rows of a
+    :class:`~de_domain.Particles` set in its public order; the engine steps them
+    (``Engine(..., clumps=...)``). Build with :meth:`place`.
+
+    ``member_of`` (n,) the clump of each particle (−1: a free sphere); the members of clump c
+    are the particles ``member_index[member_start[c]:member_start[c + 1]]`` (template order) at
+    ``member_body`` (their centres in the clump's principal frame). State: ``pos`` (nc, 3) the
+    centres of mass, ``vel`` (nc, 3) v^{n−½}, ``quat`` (nc, 4) orientations (principal frame →
+    space, :mod:`de_domain.rigid`), ``angmom`` (nc, 3) L^{n−½} in the space frame; ``mass`` (nc,),
+    ``moments`` (nc, 3) principal moments; ``force``/``torque`` (nc, 3) the last step's resultant.
+    ``sphere_mass`` (n,): each member's mass as a sphere of its own (the critical time step
+    reads it; a member particle's ``mass`` is its clump's, for the contact dashpot)."""
+
+    FIELDS = ("member_of", "member_start", "member_index", "member_body", "pos", "vel", "quat", "angmom", "mass",
+              "moments", "force", "torque", "sphere_mass")
+
+    def __init__(self, **arrays):
+        for name in self.FIELDS:
+            setattr(self, name, np.array(arrays[name]))
+
+    @classmethod
+    def none(cls, n_particles):
+        """No clump over ``n_particles`` free spheres."""
+        return cls(member_of=np.full(n_particles, -1, np.int32), member_start=np.zeros(1, np.int64),
+                   member_index=np.zeros(0, np.int64), member_body=np.zeros((0, 3)), pos=np.zeros((0, 3)),
+                   vel=np.zeros((0, 3)), quat=np.zeros((0, 4)), angmom=np.zeros((0, 3)), mass=np.zeros(0),
+                   moments=np.zeros((0, 3)), force=np.zeros((0, 3)), torque=np.zeros((0, 3)),
+                   sphere_mass=np.zeros(n_particles))
+
+    @property
+    def count(self):
+        """Number of clumps."""
+        return self.mass.size
+
+    @classmethod
+    def place(cls, templates, template_of, centres, orientations, materials, material_of=None, velocities=None,
+              angular_velocities=None, spheres=None):
+        """Clumps of ``templates`` (:class:`ClumpTemplate`): clump c is ``templates[template_of[c]]``
+        with its centroid at ``centres[c]``, turned by the unit quaternion ``orientations[c]``
+        (principal frame → space), of material ``material_of[c]`` (default 0; the density is
+        the material's), moving at ``velocities[c]`` and spinning at ``angular_velocities[c]``
+        (space frame). Returns (particles, clumps): the members, clump by clump in template
+        order, then the free ``spheres`` (a Particles set) if given."""
+        template_of = np.asarray(template_of, np.int64).reshape(-1)
+        nc = template_of.size
+        centres = np.asarray(centres, float).reshape(nc, 3)
+        quat = np.asarray(orientations, float).reshape(nc, 4)
+        quat = quat / np.linalg.norm(quat, axis=1)[:, None]
+        material_of = np.zeros(nc, np.int32) if material_of is None else np.asarray(material_of, np.int32).reshape(nc)
+        vel = np.zeros((nc, 3)) if velocities is None else np.asarray(velocities, float).reshape(nc, 3)
+        spin = np.zeros((nc, 3)) if angular_velocities is None else np.asarray(angular_velocities, float).reshape(nc, 3)
+        density, _, _ = material_arrays(materials)
+        counts = np.array([templates[t].count for t in template_of], np.int64)
+        member_start = np.concatenate([[0], np.cumsum(counts)])
+        m = int(member_start[-1])
+        member_body = np.concatenate([templates[t].members for t in template_of]) if nc else np.zeros((0, 3))
+        radius = np.concatenate([templates[t].radii for t in template_of]) if nc else np.zeros(0)
+        chosen = [templates[t] for t in template_of]
+        mass = np.array([t.mass(density[k]) for t, k in zip(chosen, material_of, strict=True)])
+        moments = np.array([t.inertia(density[k]) for t, k in zip(chosen, material_of, strict=True)]).reshape(nc, 3)
+        owner = np.repeat(np.arange(nc), counts)
+        pos = np.empty((m, 3))
+        member_vel = np.empty((m, 3))
+        angmom = np.empty((nc, 3))
+        for c in range(nc):
+            q = tuple(quat[c])
+            body_w = to_body(q, *spin[c])
+            angmom[c] = to_space(q, *(np.array(body_w) * moments[c]))
+            for k in range(member_start[c], member_start[c + 1]):
+                arm = np.array(to_space(q, *member_body[k]))
+                pos[k] = centres[c] + arm
+                member_vel[k] = vel[c] + np.cross(spin[c], arm)
+        sphere_mass = density[material_of[owner]] * 4.0 / 3.0 * np.pi * radius**3
+        members = Particles(pos, radius, mass[owner], inertia=0.4 * sphere_mass * radius**2, vel=member_vel,
+                            angvel=spin[owner], material=material_of[owner])
+        member_of = owner.astype(np.int32)
+        if spheres is not None:
+            members = _concatenate(members, spheres)
+            member_of = np.concatenate([member_of, np.full(spheres.n, -1, np.int32)])
+            sphere_mass = np.concatenate([sphere_mass, spheres.mass])
+        clumps = cls(member_of=member_of, member_start=member_start, member_index=np.arange(m, dtype=np.int64),
+                     member_body=member_body, pos=centres, vel=vel, quat=quat, angmom=angmom, mass=mass,
+                     moments=moments, force=np.zeros((nc, 3)), torque=np.zeros((nc, 3)), sphere_mass=sphere_mass)
+        return members, clumps
+
+    def arrays(self):
+        """Every array, by name (for a checkpoint)."""
+        return {name: getattr(self, name) for name in self.FIELDS}
+
+    def angular_velocity(self):
+        """ω^{n−½} of each clump in the space frame, R I⁻¹ Rᵀ L (nc, 3)."""
+        out = np.empty((self.count, 3))
+        for c in range(self.count):
+            q = tuple(self.quat[c])
+            out[c] = to_space(q, *(np.array(to_body(q, *self.angmom[c])) / self.moments[c]))
+        return out
+
+
+def _concatenate(first, second):
+    """One Particles set of the rows of ``first`` then ``second`` (neither distributed)."""
+    out = Particles.__new__(Particles)
+    for name in ARRAY_FIELDS:
+        setattr(out, name, np.concatenate([getattr(first, name), getattr(second, name)]))
+    out.ghost = np.zeros(out.pos.shape[0], np.bool_)
+    return out

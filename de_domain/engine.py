@@ -23,6 +23,7 @@ import numpy as np
 from numba_support.dispatch import CachedEntry
 
 from . import fused
+from .clumps import Clumps
 from .contact_laws import HERTZ, LAWS
 from .materials import PAIR_ROLLING_STIFFNESS, Material, material_arrays, pair_table
 from .neighbors import ContactRecords, NeighborList
@@ -40,6 +41,7 @@ from .state import (
     CLOCK_TIME,
     N_BOOKS,
     N_CLOCK,
+    ClumpArrays,
     ContactParameters,
     FacetCandidates,
     FacetMeshes,
@@ -100,7 +102,7 @@ class Engine:
 
     def __init__(self, particles: Particles, materials, walls=(), facets=(), contact_law="linear",
                  gravity=(0.0, 0.0, -9.81), dt=None, safety_factor=0.3, local_damping=0.0,
-                 viscous_damping=0.0, skin=None, comm=None):
+                 viscous_damping=0.0, skin=None, comm=None, clumps=None):
         if contact_law not in LAWS:
             raise ValueError(f"Engine: contact_law = {contact_law!r}; allowed: {sorted(LAWS)}")
         if not 0.0 < safety_factor <= 1.0:
@@ -118,6 +120,14 @@ class Engine:
         #: the walls' ``force`` is not the last step's (a run with ``wall_forces_each_run`` off)
         self.wall_forces_stale = False
         self.particles = particles
+        if clumps is not None and clumps.member_of.size != particles.n:
+            raise ValueError(f"Engine: the clumps are over {clumps.member_of.size} particles, the engine has "
+                             f"{particles.n}")
+        if clumps is not None and clumps.count and comm is not None:
+            raise ValueError("Engine: clumps are not yet distributed over MPI ranks; run them on one rank "
+                             "(threads: NUMBA_NUM_THREADS)")
+        #: rigid clumps of member spheres (de_domain.clumps.Clumps; none by default)
+        self.clumps = clumps if clumps is not None else Clumps.none(particles.n)
         self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
         n_mat = len(self.materials)
         used = [particles.material] + [np.array([w.material]) for w in walls] + \
@@ -152,6 +162,8 @@ class Engine:
         self._clock = np.zeros(N_CLOCK)
         self._clock[CLOCK_PARTICLE_SHIFT] = -1.0
         self._identity_perm = np.zeros(0, np.int32)  # perm of the sorted copies: 0, 1, ..., n − 1
+        self._free_member_of = np.zeros(0, np.int32)  # −1 per particle: no clump
+        self._sorted_clump_rows = None  # the clumps' member_of and member rows in the spatial order
         self._sorted = None  # buffers of the spatially sorted copies (_sorted_copies)
         self._advance_kernel = CachedEntry(fused.advance)  # fused.advance without per-call typing
         self._wall_totals = CachedEntry(fused.wall_totals)
@@ -262,8 +274,10 @@ class Engine:
         elif self.law == HERTZ:
             rho = self.density[p.material]
             local = float(np.min(p.radius * np.sqrt(rho / E)))
-        else:
-            local = float(np.min(np.sqrt(p.mass / (2.0 * E * p.radius))))
+        else:  # a clump's member as a sphere of its own (its particle mass is the clump's)
+            mass = np.where(self.clumps.member_of >= 0, self.clumps.sphere_mass, p.mass) if self.clumps.count \
+                else p.mass
+            local = float(np.min(np.sqrt(mass / (2.0 * E * p.radius))))
         return self.runner.minimum(local)
 
     # ------------------------------------------------------------------ the step
@@ -286,7 +300,7 @@ class Engine:
         """For a caller that calls :func:`fused.advance` from its own compiled loop (the
         FE–DE coupling, :mod:`cosim.compiled_coupling`): what :meth:`run` does before its
         kernel call — boundary jumps booked, the state in the sorted copies, the facet
-        impulses loaded — and the kernel's arguments after ``nsteps``: the seven named tuples of
+        impulses loaded — and the kernel's arguments after ``nsteps``: the eight named tuples of
         :mod:`de_domain.state`, the energy books and the clock. The facet vertices, their
         velocities and impulses are the arrays of the returned ``FacetMeshes``, all meshes
         concatenated (mesh k's rows from ``facet_rows(k)``); the caller may set them between
@@ -362,7 +376,7 @@ class Engine:
             if refresh or nl.perm is None:
                 nl.perm_step = self.step_count
             nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, ghost=p.ghost,
-                     carried=self.take_pending_records(), new_order=refresh)
+                     carried=self.take_pending_records(), new_order=refresh, body=self.clumps.member_of)
             self._allocate_pair_arrays(nl.pair_js.size)
 
     def install_rows(self, rows, ghost, ids, carried):
@@ -452,7 +466,27 @@ class Engine:
                                      history=nl.facet_history, active=self.facet_active, force=self.facet_force,
                                      barycentric=self.facet_lambda)
         params = ContactParameters(young=self.young, pair_params=self.pair_params)
-        return settings, particles, params, pairs, plane_walls, meshes, candidates
+        return settings, particles, params, pairs, plane_walls, meshes, candidates, self._clump_arrays(in_order)
+
+    def _clump_arrays(self, in_order):
+        """:data:`ClumpArrays` over the kernel's particle rows: the public ones, or the spatially
+        sorted copies (``in_order``: members and ``member_of`` through the spatial order)."""
+        c = self.clumps
+        if not c.count:
+            if self._free_member_of.size != self._particles.n:
+                self._free_member_of = np.full(self._particles.n, -1, np.int32)
+            member_of, member_row = self._free_member_of, c.member_index
+        elif in_order:  # into buffers kept by the engine: the kernel's cached entry needs the same arrays
+            if self._sorted_clump_rows is None or self._sorted_clump_rows[0].size != c.member_of.size:
+                self._sorted_clump_rows = (np.empty_like(c.member_of), np.empty_like(c.member_index))
+            member_of, member_row = self._sorted_clump_rows
+            np.take(c.member_of, self.neighbors.perm, out=member_of)
+            member_row[:] = self.neighbors.iperm[c.member_index]
+        else:
+            member_of, member_row = c.member_of, c.member_index
+        return ClumpArrays(member_of=member_of, pos=c.pos, vel=c.vel, quat=c.quat, angmom=c.angmom, mass=c.mass,
+                           moments=c.moments, member_start=c.member_start, member_row=member_row,
+                           member_body=c.member_body, force=c.force, torque=c.torque)
 
     def _public_arrays(self):
         """The particle arrays in the public order, as the kernels take them."""
@@ -818,6 +852,9 @@ class Engine:
             data["nl_skin"] = np.float64(self.neighbors.skin)
             for k, v in self.runner.contact_records(self)._asdict().items():
                 data[f"records_{k}"] = v
+        if self.clumps.count:
+            for k, v in self.clumps.arrays().items():
+                data[f"clump_{k}"] = v
         data["gravity"] = self.gravity
         data["acceleration"] = acceleration
         data["config"] = np.array([self.dt, self.safety_factor, self.local_damping, self.viscous_damping,
@@ -856,9 +893,10 @@ class Engine:
                 setattr(mesh, name, d[f"facet{k}_{name}"].copy())
             facets.append(mesh)
         dt, safety, local, viscous, time = d["config"]
+        clumps = Clumps(**{k: d[f"clump_{k}"] for k in Clumps.FIELDS}) if "clump_mass" in d else None
         engine = cls(particles, materials, walls, facets, contact_law=str(d["contact_law"]),
                      gravity=d["gravity"], dt=dt, safety_factor=safety, local_damping=local,
-                     viscous_damping=viscous, skin=float(d["nl_skin"]), comm=comm)
+                     viscous_damping=viscous, skin=float(d["nl_skin"]), comm=comm, clumps=clumps)
         engine._wall_points_known = d["wall_point_known"].reshape(-1, 3).copy()
         for k in range(len(facets)):
             engine._facet_vertices_known[engine.facet_rows(k)] = d[f"facet{k}_vertices_known"]

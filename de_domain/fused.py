@@ -64,7 +64,8 @@ from .contact_laws import (
     linear_normal_stiffness,
     released_energy,
 )
-from .integrate import IntegrationTerms, integrate_block
+from .integrate import IntegrationTerms, integrate_block, leapfrog_dof
+from .rigid import rotational_leapfrog, to_body, to_space
 from .state import (
     BOOK_ACCUMULATED,
     BOOK_FIRST,
@@ -281,7 +282,7 @@ def gather_j_side(first, last, in_order, particles, pairs):
 
 
 @njit(cache=True, error_model="numpy")
-def _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax):
+def _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, clumps, e2, dmax):
     """Region 2 work item, the owned particles of perm positions [b·PBLOCK, (b+1)·PBLOCK),
     in passes over the block: the gather, the plane walls, the facets, then gravity,
     damping and the leapfrog. Each particle's sum takes the same terms in the same
@@ -317,7 +318,8 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
             for d in range(3):
                 force[i, d] = resultant[d]
                 torque[i, d] = resultant[3 + d]
-    terms = integrate_block(first, last, settings, particles, perm, IntegrationTerms(0.0, 0.0, 0.0, 0.0, 0.0))
+    terms = integrate_block(first, last, settings, particles, perm, clumps.member_of,
+                            IntegrationTerms(0.0, 0.0, 0.0, 0.0, 0.0))
     d2max = 0.0
     for s in range(first, last):
         i = np.uint64(s) if in_order else np.uint64(perm[s])
@@ -335,6 +337,127 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
     for k in range(N_INTEGRATION):
         e2[b, N_WALL_ENERGY + k] = terms[k]
     dmax[b] = d2max
+
+
+@njit(cache=True, error_model="numpy")
+def _damping_torque(t, w, big_l, local_damping, viscous_damping):
+    """A clump's background damping torque on one space component: −α_v L − α_b |τ| sign(ω)
+    (the spheres' −α_v I ω − α_b |τ| sign(ω), docs/design.md §2.13, with I ω = L)."""
+    damp = -viscous_damping * big_l
+    if local_damping > 0.0 and w != 0.0:
+        damp -= local_damping * abs(t) * np.sign(w)
+    return damp
+
+
+@njit(cache=True, error_model="numpy")
+def _place_member(pos, vel, accel, angvel, ref_pos, row, x, y, z, vx, vy, vz, wx, wy, wz, dt):
+    """A clump's member moved to (x, y, z) with velocity (vx, vy, vz) and spin (wx, wy, wz); its
+    acceleration (v^{n+½} − v^{n−½})/Δt. Returns its squared displacement since the last list
+    build (inf for a NaN)."""
+    accel[row, 0] = (vx - vel[row, 0]) / dt
+    accel[row, 1] = (vy - vel[row, 1]) / dt
+    accel[row, 2] = (vz - vel[row, 2]) / dt
+    pos[row, 0] = x; pos[row, 1] = y; pos[row, 2] = z
+    vel[row, 0] = vx; vel[row, 1] = vy; vel[row, 2] = vz
+    angvel[row, 0] = wx; angvel[row, 1] = wy; angvel[row, 2] = wz
+    ex = x - ref_pos[row, 0]
+    ey = y - ref_pos[row, 1]
+    ez = z - ref_pos[row, 2]
+    e2 = ex * ex + ey * ey + ez * ez
+    return e2 if e2 == e2 else math.inf
+
+
+@njit(cache=True, error_model="numpy")
+def integrate_clumps(settings, particles, clumps, integration):
+    """Advance every clump by one step from its members' contact forces (docs/design.md §2.19),
+    clump by clump and member by member in template order (a fixed order: the same bits for
+    any thread count), then place its members. Per clump: F = M g + Σ F_m, τ = Σ (x_m − x_c) ×
+    F_m + T_m; the centre by the spheres' leapfrog with background damping
+    (:func:`de_domain.integrate.leapfrog_dof`); the orientation by NO_SQUISH
+    (:func:`de_domain.rigid.rotational_leapfrog`) under τ + τ_d, τ_d = −α_v L − α_b |τ| sign(ω)
+    per space component; then each member at x_c + R(q) b_m with v_c + ω × R(q) b_m and ω, its
+    acceleration (v^{n+½} − v^{n−½})/Δt. Adds the clumps' terms to ``integration``
+    (``state.I_*``: kinetic energies at tⁿ with the mean of the half-step momenta, gravity,
+    damping) and returns the members' largest squared displacement since the last list
+    build."""
+    dt = settings.dt
+    gravity = settings.gravity
+    local_damping = settings.local_damping
+    viscous_damping = settings.viscous_damping
+    pos = particles.pos
+    vel = particles.vel
+    accel = particles.accel
+    angvel = particles.angvel
+    force = particles.force
+    torque = particles.torque
+    ref_pos = particles.ref_pos
+    centre = clumps.pos
+    velocity = clumps.vel
+    quat = clumps.quat
+    angmom = clumps.angmom
+    mass = clumps.mass
+    moments = clumps.moments
+    start = clumps.member_start
+    member_row = clumps.member_row
+    member_body = clumps.member_body
+    d2max = 0.0
+    for c in range(mass.size):
+        m = mass[c]
+        inv = 1.0 / m
+        fx = m * gravity[0]; fy = m * gravity[1]; fz = m * gravity[2]
+        tx = 0.0; ty = 0.0; tz = 0.0
+        for k in range(start[c], start[c + 1]):
+            row = np.uint64(member_row[k])
+            rx = pos[row, 0] - centre[c, 0]
+            ry = pos[row, 1] - centre[c, 1]
+            rz = pos[row, 2] - centre[c, 2]
+            gx = force[row, 0]; gy = force[row, 1]; gz = force[row, 2]
+            fx += gx; fy += gy; fz += gz
+            tx += ry * gz - rz * gy + torque[row, 0]
+            ty += rz * gx - rx * gz + torque[row, 1]
+            tz += rx * gy - ry * gx + torque[row, 2]
+        clumps.force[c, 0] = fx; clumps.force[c, 1] = fy; clumps.force[c, 2] = fz
+        clumps.torque[c, 0] = tx; clumps.torque[c, 1] = ty; clumps.torque[c, 2] = tz
+        # the centre: the spheres' leapfrog, DOF by DOF (no tuple indexed by a variable: Numba
+        # would give each such read a stack slot inside the loop, and a long run overflows the stack)
+        for d in range(3):
+            f = fx if d == 0 else (fy if d == 1 else fz)
+            v = velocity[c, d]
+            v_new, v_mid, _, damped = leapfrog_dof(f, v, m, inv, dt, False, False, 0.0, local_damping,
+                                                    viscous_damping)
+            integration[I_KINETIC_TRANSLATIONAL] += 0.5 * m * v_mid * v_mid
+            integration[I_GRAVITY] -= m * gravity[d] * centre[c, d]
+            integration[I_BACKGROUND_DAMPING] -= damped
+            velocity[c, d] = v_new
+            centre[c, d] += dt * v_new
+        q = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
+        inertia = (moments[c, 0], moments[c, 1], moments[c, 2])
+        lx = angmom[c, 0]; ly = angmom[c, 1]; lz = angmom[c, 2]
+        bx, by, bz = to_body(q, lx, ly, lz)
+        wx, wy, wz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])  # ω^{n−½}
+        dx = _damping_torque(tx, wx, lx, local_damping, viscous_damping)
+        dy = _damping_torque(ty, wy, ly, local_damping, viscous_damping)
+        dz = _damping_torque(tz, wz, lz, local_damping, viscous_damping)
+        q_new, l_new, w_new = rotational_leapfrog(q, (lx, ly, lz), (tx + dx, ty + dy, tz + dz), inertia, dt)
+        # at tⁿ: L = (L^{n−½} + L^{n+½})/2 at qⁿ
+        nx, ny, nz = l_new
+        bx, by, bz = to_body(q, 0.5 * (lx + nx), 0.5 * (ly + ny), 0.5 * (lz + nz))
+        integration[I_KINETIC_ROTATIONAL] += 0.5 * (bx * bx / inertia[0] + by * by / inertia[1]
+                                                    + bz * bz / inertia[2])
+        mx, my, mz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])
+        integration[I_BACKGROUND_DAMPING] -= (dx * mx + dy * my + dz * mz) * dt
+        quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3] = q_new
+        angmom[c, 0] = nx; angmom[c, 1] = ny; angmom[c, 2] = nz
+        ox, oy, oz = w_new
+        cx = centre[c, 0]; cy = centre[c, 1]; cz = centre[c, 2]
+        vx = velocity[c, 0]; vy = velocity[c, 1]; vz = velocity[c, 2]
+        for k in range(start[c], start[c + 1]):
+            row = np.uint64(member_row[k])
+            rx, ry, rz = to_space(q_new, member_body[k, 0], member_body[k, 1], member_body[k, 2])
+            d2max = max(d2max, _place_member(pos, vel, accel, angvel, ref_pos, row, cx + rx, cy + ry, cz + rz,
+                                             vx + oy * rz - oz * ry, vy + oz * rx - ox * rz, vz + ox * ry - oy * rx,
+                                             ox, oy, oz, dt))
+    return d2max
 
 
 @njit(cache=True, error_model="numpy")
@@ -458,14 +581,14 @@ def _pair_region(nb, settings, particles, params, pairs, e1):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax):
+def _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, clumps, e2, dmax):
     """Region 2 of a step: :func:`_particle_block` over the blocks, in parallel."""
     for b in prange(nb):
-        _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax)
+        _particle_block(b, settings, particles, params, pairs, walls, meshes, candidates, clumps, e2, dmax)
 
 
 @njit(cache=True, error_model="numpy")
-def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, books, clock):
+def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, clumps, books, clock):
     """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the
     next step. ``clock``: ``state.CLOCK_TIME``, ``CLOCK_STEPS`` (steps done),
     ``CLOCK_PARTICLE_SHIFT`` (the particle part of the rebuild test, for the next). Per step,
@@ -493,7 +616,7 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
     integration = np.empty(N_INTEGRATION)
     for _ in range(nsteps):
         _pair_region(nb, settings, particles, params, pairs, e1)
-        _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, e2, dmax)
+        _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, clumps, e2, dmax)
         contact[:] = 0.0
         boundary[:] = 0.0
         integration[:] = 0.0
@@ -505,8 +628,10 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
                 boundary[k] += e2[b, k]
             for k in range(N_INTEGRATION):
                 integration[k] += e2[b, N_WALL_ENERGY + k]
-        record_energy(books, contact, boundary, integration)
         d2 = 0.0
+        if clumps.mass.size:
+            d2 = integrate_clumps(settings, particles, clumps, integration)
+        record_energy(books, contact, boundary, integration)
         for b in range(nb):
             d2 = max(d2, dmax[b])
         dw2 = _move_boundaries(settings, walls, meshes, candidates)

@@ -42,10 +42,11 @@ def leapfrog_dof(f, v, m, inv, dt, held, prescribed, prescribed_velocity, local_
 
 
 @njit(cache=True, error_model="numpy")
-def integrate_block(first, last, settings, particles, perm, terms):
-    """Advance the owned particles of perm positions [first, last) by one step from
+def integrate_block(first, last, settings, particles, perm, member_of, terms):
+    """Advance the owned free particles of perm positions [first, last) by one step from
     the contact resultant in ``particles.force``/``torque`` (gravity is added here, so
-    ``force`` ends as the full resultant). Returns the running :data:`IntegrationTerms`
+    ``force`` ends as the full resultant; a clump's member, ``member_of[i] ≥ 0``, is moved
+    by its clump, :func:`de_domain.fused.integrate_clumps`). Returns the running :data:`IntegrationTerms`
     ``terms`` with these particles' added, particle by particle and DOF by DOF. One
     call per block: the named tuples are unpacked once per block (each unpacked array
     costs an atomic reference-count increment and decrement)."""
@@ -68,7 +69,7 @@ def integrate_block(first, last, settings, particles, perm, terms):
     ke_t, ke_r, potential, damping, boundary = terms
     for s in range(first, last):
         i = np.uint64(s) if settings.in_order else np.uint64(perm[s])
-        if ghost[i]:
+        if ghost[i] or member_of[i] >= 0:
             continue
         m = mass[i]
         inv = 1.0 / m

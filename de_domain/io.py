@@ -17,15 +17,18 @@ def _write_vtu(path, points, cells, point_data):
     return Path(path)
 
 
-def write_particles_vtu(path, particles):
+def write_particles_vtu(path, particles, clump=None):
     """Spheres as VTK vertices with radius, velocity, angular velocity, force, material, group
-    (the owned particles only: ghost copies are left out)."""
+    (the owned particles only: ghost copies are left out), and ``clump`` (each particle's clump,
+    −1 for a free sphere) if given: colour by it, or threshold it, to see the grains."""
     mine = particles.owned
     n = int(np.count_nonzero(mine))
-    return _write_vtu(path, particles.pos[mine], ("vertex", np.arange(n).reshape(-1, 1)), {
-        "radius": particles.radius[mine], "velocity": particles.vel[mine],
-        "angular_velocity": particles.angvel[mine], "force": particles.force[mine],
-        "material": particles.material[mine], "group": particles.group[mine]})
+    fields = {"radius": particles.radius[mine], "velocity": particles.vel[mine],
+              "angular_velocity": particles.angvel[mine], "force": particles.force[mine],
+              "material": particles.material[mine], "group": particles.group[mine]}
+    if clump is not None:
+        fields["clump"] = np.asarray(clump)[mine]
+    return _write_vtu(path, particles.pos[mine], ("vertex", np.arange(n).reshape(-1, 1)), fields)
 
 
 def write_facets_vtu(path, mesh):
@@ -46,7 +49,9 @@ def write_frame(directory, engine, step):
     domain = getattr(engine, "domain", None)
     if domain is None:
         directory.mkdir(parents=True, exist_ok=True)
-        paths = [write_particles_vtu(particle_path, engine.particles)]
+        clumps = getattr(engine, "clumps", None)
+        clump = clumps.member_of if clumps is not None and clumps.count else None
+        paths = [write_particles_vtu(particle_path, engine.particles, clump)]
         for path, mesh in zip(facet_paths, engine.facets, strict=True):
             paths.append(write_facets_vtu(path, mesh))
         return paths

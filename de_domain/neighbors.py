@@ -50,10 +50,11 @@ def insertion_sort(a, start, stop):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def count_or_fill_pairs(pos, radius, ghost, skin, dims, cell_start, cell_particles, particle_cell, perm,
+def count_or_fill_pairs(pos, radius, ghost, body, skin, dims, cell_start, cell_particles, particle_cell, perm,
                         n_active, i_start, j_out, fill):
     """Half list (partners j > i) of particle perm[s], per perm position s; sorted by j.
-    A pair of two ghosts is left out (no owned particle needs it)."""
+    A pair of two ghosts is left out (no owned particle needs it), and so is a pair of two
+    members of one clump (``body``: the clump of each particle, −1 for a free sphere)."""
     for s in prange(n_active):
         i = perm[s]
         cz = particle_cell[i] % dims[2]
@@ -69,7 +70,7 @@ def count_or_fill_pairs(pos, radius, ghost, skin, dims, cell_start, cell_particl
                     c = (ax * dims[1] + ay) * dims[2] + az
                     for q in range(cell_start[c], cell_start[c + 1]):
                         j = cell_particles[q]
-                        if j <= i or (ghost[i] and ghost[j]):
+                        if j <= i or (ghost[i] and ghost[j]) or (body[i] >= 0 and body[i] == body[j]):
                             continue
                         cut = radius[i] + radius[j] + skin
                         dx = pos[j, 0] - pos[i, 0]
@@ -432,13 +433,14 @@ class NeighborList:
                               self.ref_wall_normal, self.skin)
 
     def build(self, pos, radius, n_active, vertices, triangles, wall_point=None, wall_normal=None,
-              ghost=None, ids=None, carried=None, new_order=False):
+              ghost=None, ids=None, carried=None, new_order=False, body=None):
         """Rebuild all lists and carry the contact history over by key.
 
         ``ids`` are the particles' global ids (default: their index), ascending, and
         ``ghost`` marks the copies of other ranks' particles (default: none); pairs
         of two ghosts are not listed, nor are the wall and facet candidates of a
-        ghost. The history comes from ``carried`` (:class:`ContactRecords`; default:
+        ghost. ``body``: each particle's clump (−1: a free sphere; default: all free); two
+        members of one clump are never a pair. The history comes from ``carried`` (:class:`ContactRecords`; default:
         this list's own, :meth:`records`). The spatial order ``perm`` is kept unless
         ``new_order`` (or there is none yet, or the particle count changed)."""
         if wall_point is None:
@@ -468,11 +470,12 @@ class NeighborList:
         perm = self.perm
         i_start = np.zeros(n_active + 1, dtype=np.int64)
         dummy = np.empty(0, dtype=np.int32)
-        count_or_fill_pairs(pos, radius, ghost, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+        body = np.full(n_active, -1, np.int32) if body is None else body
+        count_or_fill_pairs(pos, radius, ghost, body, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
                             n_active, i_start, dummy, False)
         i_start = np.cumsum(i_start)
         pair_j = np.empty(i_start[-1], dtype=np.int32)
-        count_or_fill_pairs(pos, radius, ghost, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
+        count_or_fill_pairs(pos, radius, ghost, body, self.skin, dims, cell_start, cell_particles, particle_cell, perm,
                             n_active, i_start, pair_j, True)
         self.i_start = i_start
         self.pair_js = self.iperm[pair_j]

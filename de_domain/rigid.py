@@ -80,11 +80,12 @@ def conjugate_momentum(q, lx, ly, lz):
 @njit(cache=True, error_model="numpy")
 def body_momentum(q, p):
     """L_b,k = ½ p·P_k q, k = 1, 2, 3."""
-    result = [0.0, 0.0, 0.0]
-    for k in range(1, 4):
-        pk = _permuted(k, q)
-        result[k - 1] = 0.5 * (p[0] * pk[0] + p[1] * pk[1] + p[2] * pk[2] + p[3] * pk[3])
-    return result[0], result[1], result[2]
+    a = _permuted(1, q)
+    b = _permuted(2, q)
+    c = _permuted(3, q)
+    return (0.5 * (p[0] * a[0] + p[1] * a[1] + p[2] * a[2] + p[3] * a[3]),
+            0.5 * (p[0] * b[0] + p[1] * b[1] + p[2] * b[2] + p[3] * b[3]),
+            0.5 * (p[0] * c[0] + p[1] * c[1] + p[2] * c[2] + p[3] * c[3]))
 
 
 @njit(cache=True, error_model="numpy")

@@ -93,6 +93,21 @@ FacetCandidates = namedtuple("FacetCandidates", [
 ])
 """Sphere–triangle candidates (triangles within r + skin at the list build)."""
 
+ClumpArrays = namedtuple("ClumpArrays", [
+    "member_of",      # (n,) per particle row of the kernel: its clump, or −1 for a free sphere
+    "pos", "vel",     # (nc, 3): centre of mass xⁿ, v^{n−½}
+    "quat",           # (nc, 4): orientation qⁿ, body (principal) frame → space (de_domain.rigid)
+    "angmom",         # (nc, 3): angular momentum L^{n−½}, space frame
+    "mass",           # (nc,)
+    "moments",        # (nc, 3): principal moments of inertia I1 ≤ I2 ≤ I3
+    "member_start",   # (nc+1,) CSR: members of clump c are member_row[member_start[c]:member_start[c+1]]
+    "member_row",     # (m,) particle row of each member of the kernel (template order)
+    "member_body",    # (m, 3) member centre in the body frame
+    "force", "torque",  # (nc, 3): resultant on the clump of the last step (contacts + gravity), about its centre
+])
+"""Rigid clumps of member spheres (docs/design.md §2.19): the members are particles for the
+contacts; the clumps carry their motion (:func:`de_domain.fused.integrate_clumps`)."""
+
 # Energy books (Engine.energy), one float64 array: the state terms at tⁿ, then the
 # rate terms accumulated, of the first recorded step and of the last (trapezoidal rule).
 N_STATE = 6   # engine.STATE_TERMS
