@@ -171,6 +171,10 @@ class ClumpTemplate:
         """Radius of the sphere of the same volume."""
         return (3.0 * self.volume / (4.0 * np.pi)) ** (1.0 / 3.0)
 
+    def reach(self):
+        """Radius of the smallest sphere about the centroid that holds every member."""
+        return float(np.max(np.linalg.norm(self.members, axis=1) + self.radii))
+
 
 def check_members(centres, radii):
     """The template rules of :class:`ClumpTemplate` (ValueError naming the member at fault)."""
@@ -236,13 +240,14 @@ class Clumps:
 
     @classmethod
     def place(cls, templates, template_of, centres, orientations, materials, material_of=None, velocities=None,
-              angular_velocities=None, spheres=None):
+              angular_velocities=None, spheres=None, scales=None):
         """Clumps of ``templates`` (:class:`ClumpTemplate`): clump c is ``templates[template_of[c]]``
-        with its centroid at ``centres[c]``, turned by the unit quaternion ``orientations[c]``
-        (principal frame → space), of material ``material_of[c]`` (default 0; the density is
-        the material's), moving at ``velocities[c]`` and spinning at ``angular_velocities[c]``
-        (space frame). Returns (particles, clumps): the members, clump by clump in template
-        order, then the free ``spheres`` (a Particles set) if given."""
+        enlarged ``scales[c]`` times (default 1: lengths × s, volume × s³, inertia × s⁵) with its
+        centroid at ``centres[c]``, turned by the unit quaternion ``orientations[c]`` (principal
+        frame → space), of material ``material_of[c]`` (default 0; the density is the
+        material's), moving at ``velocities[c]`` and spinning at ``angular_velocities[c]`` (space
+        frame). Returns (particles, clumps): the members, clump by clump in template order, then
+        the free ``spheres`` (a Particles set) if given."""
         template_of = np.asarray(template_of, np.int64).reshape(-1)
         nc = template_of.size
         centres = np.asarray(centres, float).reshape(nc, 3)
@@ -251,16 +256,19 @@ class Clumps:
         material_of = np.zeros(nc, np.int32) if material_of is None else np.asarray(material_of, np.int32).reshape(nc)
         vel = np.zeros((nc, 3)) if velocities is None else np.asarray(velocities, float).reshape(nc, 3)
         spin = np.zeros((nc, 3)) if angular_velocities is None else np.asarray(angular_velocities, float).reshape(nc, 3)
+        scales = np.ones(nc) if scales is None else np.asarray(scales, float).reshape(nc)
         density, _, _ = material_arrays(materials)
         counts = np.array([templates[t].count for t in template_of], np.int64)
         member_start = np.concatenate([[0], np.cumsum(counts)])
         m = int(member_start[-1])
-        member_body = np.concatenate([templates[t].members for t in template_of]) if nc else np.zeros((0, 3))
-        radius = np.concatenate([templates[t].radii for t in template_of]) if nc else np.zeros(0)
-        chosen = [templates[t] for t in template_of]
-        mass = np.array([t.mass(density[k]) for t, k in zip(chosen, material_of, strict=True)])
-        moments = np.array([t.inertia(density[k]) for t, k in zip(chosen, material_of, strict=True)]).reshape(nc, 3)
         owner = np.repeat(np.arange(nc), counts)
+        member_body = (np.concatenate([templates[t].members for t in template_of]) if nc else np.zeros((0, 3))) \
+            * scales[owner, None]
+        radius = (np.concatenate([templates[t].radii for t in template_of]) if nc else np.zeros(0)) * scales[owner]
+        chosen = [templates[t] for t in template_of]
+        mass = np.array([t.mass(density[k]) for t, k in zip(chosen, material_of, strict=True)]) * scales**3
+        moments = np.array([t.inertia(density[k]) for t, k in zip(chosen, material_of, strict=True)]).reshape(nc, 3) \
+            * (scales**5)[:, None]
         pos = np.empty((m, 3))
         member_vel = np.empty((m, 3))
         angmom = np.empty((nc, 3))

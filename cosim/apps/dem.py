@@ -78,7 +78,11 @@ def read_inputs(case, case_path):
     dem = case.dem
     names = [m.name for m in dem.materials]
     p = dem.particles
-    if p.source == "file":
+    clumps = None
+    if p.grains == "clumps":
+        clumps = place_clumps(case, case_path)
+        positions, radii = clumps["centres"], clumps["scale"]
+    elif p.source == "file":
         positions, radii = read_packing(case_path, "dem.particles.file", p.file)
     else:
         from de_domain.packing import random_cloud
@@ -97,7 +101,31 @@ def read_inputs(case, case_path):
             except Exception as exc:
                 raise CaseError(case_path, f"dem.walls[{i}].file", w.file,
                                 f"could not read the triangle mesh: {exc}") from None
-    return {"positions": positions, "radii": radii, "facets": facets}
+    return {"positions": positions, "radii": radii, "facets": facets, "clumps": clumps}
+
+
+def place_clumps(case, case_path):
+    """``count`` grains of the [[dem.clumps]] shapes (drawn by share), each scaled to an equal-volume
+    radius drawn uniformly from ``radius``, at random non-overlapping places in ``box`` (their
+    enclosing spheres do not overlap) in random orientations (uniform unit quaternions)."""
+    from cosim.case.validation import clump_templates
+    from de_domain.packing import random_cloud
+    p = case.dem.particles
+    rng = np.random.default_rng(case.case.seed)
+    templates = clump_templates(case_path, case.dem)
+    share = np.array([t.share for t in case.dem.clumps])
+    template_of = rng.choice(len(templates), size=p.count, p=share / share.sum())
+    size = rng.uniform(p.radius[0], p.radius[1], p.count)
+    scale = size / np.array([t.equivalent_radius() for t in templates])[template_of]
+    enclosing = scale * np.array([t.reach() for t in templates])[template_of]
+    order = np.argsort(enclosing, kind="stable")[::-1]  # random_cloud places the largest first
+    try:
+        centres, _ = random_cloud(enclosing[order], p.box[0], p.box[1], seed=case.case.seed)
+    except ValueError as exc:
+        raise CaseError(case_path, "dem.particles.count", p.count, f"{exc} (each grain's enclosing sphere)") from None
+    orientations = rng.normal(size=(p.count, 4))
+    return {"templates": templates, "template_of": template_of[order], "scale": scale[order], "centres": centres,
+            "orientations": orientations / np.linalg.norm(orientations, axis=1)[:, None]}
 
 
 def read_packing(case_path, key, name):
@@ -178,12 +206,20 @@ def materials_of(dem, *names):
 
 def _engine(case, built, extra_facets, comm=None):
     from de_domain import Engine, Particles, PlaneWall
+    from de_domain.clumps import Clumps
     dem = case.dem
     names = [m.name for m in dem.materials]
     materials = materials_of(dem)[0]
     mat_ids = np.full(len(built["radii"]), names.index(dem.particles.material), np.int32)
     velocities = np.tile(np.asarray(dem.particles.velocity, float), (len(built["radii"]), 1))
-    particles = Particles.from_spheres(built["positions"], built["radii"], mat_ids, materials, velocities=velocities)
+    clumps = None
+    if built.get("clumps") is not None:
+        c = built["clumps"]
+        particles, clumps = Clumps.place(c["templates"], c["template_of"], c["centres"], c["orientations"], materials,
+                                         material_of=mat_ids, velocities=velocities, scales=c["scale"])
+    else:
+        particles = Particles.from_spheres(built["positions"], built["radii"], mat_ids, materials,
+                                           velocities=velocities)
     walls, facets = [], []
     for i, w in enumerate(dem.walls):
         if w.type == "plane":
@@ -194,7 +230,7 @@ def _engine(case, built, extra_facets, comm=None):
             facets.append(mesh)
     return Engine(particles, materials, walls=walls, facets=facets + list(extra_facets), contact_law=dem.contact_law,
                   gravity=dem.gravity, dt=case.time.dt, safety_factor=case.time.safety_factor,
-                  local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
+                  local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm, clumps=clumps)
 
 
 def run(prepared):
@@ -234,7 +270,9 @@ def _run_engine(case, engine, out_dir, resume):
     every = max(1, int(round(interval / engine.dt)))
     critical = engine.critical_timestep()  # collective when distributed
     ranks = f" on {comm.size} MPI ranks" if comm is not None else ""
-    say(f"[{case.case.name}] {n_particles} spheres{ranks}, dt = {engine.dt:.3e} s "
+    clumps = engine.clumps.count
+    grains = f"{clumps} clumps of {n_particles} spheres" if clumps else f"{n_particles} spheres"
+    say(f"[{case.case.name}] {grains}{ranks}, dt = {engine.dt:.3e} s "
         f"(critical {critical:.3e} s), {total} steps, output every {every} steps")
 
     energy_keys = list(engine.energy())
@@ -286,6 +324,8 @@ def _run_engine(case, engine, out_dir, resume):
     from de_domain.packing import save_packing
     mine = particles.owned
     save_packing(out_dir / "final_packing.npz", particles.pos[mine], particles.radius[mine], time=engine.time)
+    if engine.clumps.count:  # the grains the spheres make up: which clump each is in, the clumps' state
+        np.savez(out_dir / "final_clumps.npz", **engine.clumps.arrays())
     from cosim.plots import plot_panels
     plot_panels(out_dir / "series.csv", "time", [
         ("kinetic energy [J]", ["kinetic"], True),

@@ -83,6 +83,19 @@ class DemParticles(Section):
         description="[r_min, r_max], uniform radii for source='cloud' [m]")
     material: str = Field(description="material name of these spheres")
     velocity: Vec3 = Field(default=[0.0, 0.0, 0.0], description="initial velocity of every sphere [m/s]")
+    grains: Literal["spheres", "clumps"] = Field(
+        default="spheres",
+        description="'spheres', or 'clumps': rigid grains of overlapping spheres shaped as the [[dem.clumps]] "
+                    "templates (source='cloud'; count grains, each of an equal-volume radius drawn from radius; "
+                    "one process, no mpirun)")
+
+
+class DemClumpTemplate(Section):
+    members: list[list[float]] = Field(
+        min_length=1,
+        description="member spheres [[x, y, z, r], ...] of one grain shape, in any length unit (each grain is "
+                    "scaled to its drawn size); members must overlap or touch")
+    share: float = Field(default=1.0, gt=0, description="relative number of grains of this shape [-]")
 
 
 class DemWall(Section):
@@ -105,6 +118,8 @@ class DemSection(Section):
     viscous_damping: float = Field(default=0.0, ge=0, description="viscous background damping alpha_v [1/s]")
     materials: list[DemMaterial] = Field(min_length=1, description="[[dem.materials]] tables")
     particles: Optional[DemParticles] = Field(default=None, description="[dem.particles]: the spheres of a 'dem' case")
+    clumps: list[DemClumpTemplate] = Field(
+        default_factory=list, description="[[dem.clumps]] grain shapes for [dem.particles] grains = 'clumps'")
     walls: list[DemWall] = Field(default_factory=list, description="[[dem.walls]] tables")
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from cosim.case.messages import warn
 from cosim.case.paths import mesh_path, resolve_path
 from cosim.case.schema import SECTIONS_OF_KIND, Case, SpecimenSection
@@ -278,6 +280,7 @@ def _check_dem(path, dem):
             raise CaseError(path, "dem.particles.radius", p.radius, "need 0 < r_min <= r_max [m]")
         if 2 * rmax >= min(high - low for low, high in zip(lo, hi, strict=True)):
             raise CaseError(path, "dem.particles.radius", p.radius, "the largest diameter must be smaller than the box")
+    _check_clumps(path, dem)
     for i, w in enumerate(dem.walls):
         key = f"dem.walls[{i}]"
         if w.material not in names:
@@ -293,6 +296,45 @@ def _check_dem(path, dem):
             f = resolve_path(path, w.file)
             if not f.is_file():
                 raise CaseError(path, f"{key}.file", w.file, f"file not found (looked for {f})")
+
+
+def clump_templates(path, dem):
+    """The [[dem.clumps]] grain shapes as :class:`de_domain.clumps.ClumpTemplate`; a template that
+    breaks the rules (no member, a row that is not x, y, z, r, a radius that is not positive,
+    members that do not touch) is a CaseError naming it."""
+    from de_domain.clumps import ClumpTemplate
+    templates = []
+    for i, t in enumerate(dem.clumps):
+        key = f"dem.clumps[{i}].members"
+        if any(len(row) != 4 for row in t.members):
+            raise CaseError(path, key, t.members, "each member is [x, y, z, r]: four numbers")
+        rows = np.asarray(t.members, float)
+        try:
+            templates.append(ClumpTemplate(rows[:, :3], rows[:, 3], grid=100))
+        except ValueError as exc:
+            raise CaseError(path, key, t.members, str(exc)) from None
+    return templates
+
+
+def _check_clumps(path, dem):
+    """[dem.particles] grains = 'clumps' with [[dem.clumps]] templates that make grains, each fitting
+    the box at the largest drawn size; [[dem.clumps]] only with grains = 'clumps'."""
+    p = dem.particles
+    if p.grains == "spheres":
+        if dem.clumps:
+            raise CaseError(path, "dem.clumps", len(dem.clumps), "grain shapes need [dem.particles] grains = 'clumps'")
+        return
+    if p.source != "cloud":
+        raise CaseError(path, "dem.particles.source", p.source, "grains = 'clumps' are made by source = 'cloud'")
+    if not dem.clumps:
+        raise CaseError(path, "dem.clumps", None, "grains = 'clumps' need at least one [[dem.clumps]] grain shape")
+    side = min(high - low for low, high in zip(*p.box, strict=True))
+    for i, template in enumerate(clump_templates(path, dem)):
+        span = 2.0 * template.reach() * p.radius[1] / template.equivalent_radius()
+        if span >= side:
+            raise CaseError(path, f"dem.clumps[{i}].members", dem.clumps[i].members,
+                            f"a grain of this shape at the largest radius {p.radius[1]} m spans {span:.3g} m, "
+                            f"not less than the box's smallest side {side:.3g} m")
 
 
 def _check_builds_its_run(path, case, lasts, time_keys, builds):

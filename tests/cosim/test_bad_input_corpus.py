@@ -20,7 +20,7 @@ from cosim.cli import main
 RUNS = Path(__file__).parents[2] / "runs"
 BASES = {"dem": "demo_dem_settling.toml", "fe": "fe_footing.toml", "shear": "direct_shear_small.toml",
          "coupled": "coupled_footing_on_sand.toml", "footing": "footing_small.toml",
-         "triaxial": "triaxial_small.toml", "embedded": "retaining_wall_small.toml"}
+         "triaxial": "triaxial_small.toml", "embedded": "retaining_wall_small.toml", "clumps": "demo_dem_clumps.toml"}
 
 
 @dataclass
@@ -58,7 +58,36 @@ NO_HEIGHT = (("sample_height = 0.025", ""),)
 SPECIMEN_FILE = '[specimen]\nsource = "file"\nfile = "specimen.npz"\n'
 LONG_NAME = "ä" * 200
 
+CLUMP_ROD = "members = [[-0.25, 0.0, 0.0, 0.5], [0.25, 0.0, 0.0, 0.5]]"
+
 CORPUS = [
+    # ---------------------------------------------------------------- grains with shape (clumps)
+    Bad("clumps", "dem.clumps", edit=((CLUMP_ROD, "members = []"),), label="clumps: a template with no members"),
+    Bad("clumps", "member 1 of the clump template has radius 0.0",
+        edit=((CLUMP_ROD, "members = [[-0.25, 0.0, 0.0, 0.5], [0.25, 0.0, 0.0, 0.0]]"),)),
+    Bad("clumps", "member 0 of the clump template has radius -0.5",
+        edit=((CLUMP_ROD, "members = [[-0.25, 0.0, 0.0, -0.5], [0.25, 0.0, 0.0, 0.5]]"),)),
+    Bad("clumps", "member 1 of the clump template does not touch the others",
+        edit=((CLUMP_ROD, "members = [[-0.25, 0.0, 0.0, 0.5], [2.0, 0.0, 0.0, 0.5]]"),)),
+    Bad("clumps", "four numbers", edit=((CLUMP_ROD, "members = [[-0.25, 0.0, 0.0], [0.25, 0.0, 0.0, 0.5]]"),)),
+    Bad("clumps", "not less than the box's smallest side",
+        sets=["dem.particles.box=[[0.0, 0.0, 0.0], [0.003, 0.03, 0.06]]"],
+        label="clumps: a grain (a 3.5 mm rod) longer than the box is wide (3 mm)"),
+    Bad("clumps", "are made by source = 'cloud'", edit=(('source = "cloud"', 'source = "file"\nfile = "bed.txt"'),
+                                                         ("count = 800                # grains\n", ""),
+                                                         ("box = [[0.0, 0.0, 0.0], [0.03, 0.03, 0.06]]\n", ""),
+                                                         ("radius = [0.0010, 0.0014]  # m, each grain's equal-volume "
+                                                          "radius\n", "")),
+        files={"bed.txt": text_packing(PACKING_OK)}),
+    Bad("clumps", "need [dem.particles] grains = 'clumps'", edit=(('grains = "clumps"', 'grains = "spheres"'),)),
+    Bad("clumps", "need at least one [[dem.clumps]]",
+        edit=(("[[dem.clumps]]             # a rod: two equal spheres, length / width = 1.5\n" + CLUMP_ROD
+               + "\nshare = 1.0\n", ""),
+              ("[[dem.clumps]]             # a bent grain of three spheres\nmembers = [[0.0, 0.0, 0.0, 0.5], "
+               "[0.6, 0.0, 0.0, 0.4], [0.0, 0.45, 0.15, 0.35]]\nshare = 1.0\n", "")),
+        label="clumps: no grain shape"),
+    Bad("clumps", "dem.particles.grains", sets=['dem.particles.grains="cubes"']),
+    Bad("clumps", "dem.clumps[0].share", sets=["dem.clumps[0].share=0.0"]),
     # ---------------------------------------------------------------- the case file itself
     Bad("dem", "UTF-8", raw=b'[case]\nname = "caf\xe9"\nkind = "dem"\n', label="not UTF-8"),
     Bad("dem", "valid TOML", raw=b"[case\nname = 1\n", label="TOML syntax error"),

@@ -126,3 +126,20 @@ def test_touching_members_are_one_body():
     assert template.volume == pytest.approx(2 * 4 / 3 * math.pi * 0.6**3, rel=1e-4)
     with pytest.raises(ValueError, match="aspect ratio"):
         ClumpTemplate.line(2, 2.5)
+
+
+def test_placed_clumps_scale_as_their_size():
+    """A template placed twice as large: members at twice the distances and radii, 8 × the mass and
+    32 × the moments of inertia — the same as a template built twice as large."""
+    from de_domain import Material
+    from de_domain.clumps import Clumps
+
+    materials = [Material(density=2000.0)]
+    small = ClumpTemplate([[0, 0, 0], [1.0, 0, 0]], [0.7, 0.5])
+    large = ClumpTemplate([[0, 0, 0], [2.0, 0, 0]], [1.4, 1.0])
+    particles, clumps = Clumps.place([small], [0], [[0, 0, 0]], [[1, 0, 0, 0]], materials, scales=[2.0])
+    assert clumps.mass[0] == pytest.approx(large.mass(2000.0), rel=1e-4)
+    assert np.allclose(clumps.moments[0], large.inertia(2000.0), rtol=1e-4)
+    assert np.allclose(particles.radius, [1.4, 1.0])
+    assert np.allclose(clumps.member_body, large.members, atol=1e-3)
+    assert small.reach() * 2 == pytest.approx(large.reach(), rel=1e-3)
