@@ -368,18 +368,16 @@ def _place_member(pos, vel, accel, angvel, ref_pos, row, x, y, z, vx, vy, vz, wx
 
 
 @njit(cache=True, error_model="numpy")
-def integrate_clumps(settings, particles, clumps, integration):
-    """Advance every clump by one step from its members' contact forces (docs/design.md §2.19),
-    clump by clump and member by member in template order (a fixed order: the same bits for
-    any thread count), then place its members. Per clump: F = M g + Σ F_m, τ = Σ (x_m − x_c) ×
-    F_m + T_m; the centre by the spheres' leapfrog with background damping
+def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
+    """Advance clumps [first, last) by one step from their members' contact forces (docs/design.md
+    §2.19), member by member in template order, then place their members. Per clump:
+    F = M g + Σ F_m, τ = Σ (x_m − x_c) × F_m + T_m; the centre by the spheres' leapfrog with background damping
     (:func:`de_domain.integrate.leapfrog_dof`); the orientation by NO_SQUISH
     (:func:`de_domain.rigid.rotational_leapfrog`) under τ + τ_d, τ_d = −α_v L − α_b |τ| sign(ω)
     per space component; then each member at x_c + R(q) b_m with v_c + ω × R(q) b_m and ω, its
-    acceleration (v^{n+½} − v^{n−½})/Δt. Adds the clumps' terms to ``integration``
-    (``state.I_*``: kinetic energies at tⁿ with the mean of the half-step momenta, gravity,
-    damping) and returns the members' largest squared displacement since the last list
-    build."""
+    acceleration (v^{n+½} − v^{n−½})/Δt. ``terms[c]``: clump c's terms (``state.I_*``: kinetic
+    energies at tⁿ with the mean of the half-step momenta, gravity, damping); ``shift[c]``: its
+    members' largest squared displacement since the last list build."""
     dt = settings.dt
     gravity = settings.gravity
     local_damping = settings.local_damping
@@ -400,8 +398,11 @@ def integrate_clumps(settings, particles, clumps, integration):
     start = clumps.member_start
     member_row = clumps.member_row
     member_body = clumps.member_body
-    d2max = 0.0
-    for c in range(mass.size):
+    for c in range(first, last):
+        d2max = 0.0
+        ke_t = 0.0
+        potential = 0.0
+        damping = 0.0
         m = mass[c]
         inv = 1.0 / m
         fx = m * gravity[0]; fy = m * gravity[1]; fz = m * gravity[2]
@@ -425,9 +426,9 @@ def integrate_clumps(settings, particles, clumps, integration):
             v = velocity[c, d]
             v_new, v_mid, _, damped = leapfrog_dof(f, v, m, inv, dt, False, False, 0.0, local_damping,
                                                     viscous_damping)
-            integration[I_KINETIC_TRANSLATIONAL] += 0.5 * m * v_mid * v_mid
-            integration[I_GRAVITY] -= m * gravity[d] * centre[c, d]
-            integration[I_BACKGROUND_DAMPING] -= damped
+            ke_t += 0.5 * m * v_mid * v_mid
+            potential -= m * gravity[d] * centre[c, d]
+            damping -= damped
             velocity[c, d] = v_new
             centre[c, d] += dt * v_new
         q = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
@@ -442,10 +443,12 @@ def integrate_clumps(settings, particles, clumps, integration):
         # at tⁿ: L = (L^{n−½} + L^{n+½})/2 at qⁿ
         nx, ny, nz = l_new
         bx, by, bz = to_body(q, 0.5 * (lx + nx), 0.5 * (ly + ny), 0.5 * (lz + nz))
-        integration[I_KINETIC_ROTATIONAL] += 0.5 * (bx * bx / inertia[0] + by * by / inertia[1]
-                                                    + bz * bz / inertia[2])
+        terms[c, I_KINETIC_ROTATIONAL] = 0.5 * (bx * bx / inertia[0] + by * by / inertia[1] + bz * bz / inertia[2])
         mx, my, mz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])
-        integration[I_BACKGROUND_DAMPING] -= (dx * mx + dy * my + dz * mz) * dt
+        terms[c, I_KINETIC_TRANSLATIONAL] = ke_t
+        terms[c, I_GRAVITY] = potential
+        terms[c, I_BACKGROUND_DAMPING] = damping - (dx * mx + dy * my + dz * mz) * dt
+        terms[c, I_BOUNDARY_WORK] = 0.0
         quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3] = q_new
         angmom[c, 0] = nx; angmom[c, 1] = ny; angmom[c, 2] = nz
         ox, oy, oz = w_new
@@ -457,6 +460,32 @@ def integrate_clumps(settings, particles, clumps, integration):
             d2max = max(d2max, _place_member(pos, vel, accel, angvel, ref_pos, row, cx + rx, cy + ry, cz + rz,
                                              vx + oy * rz - oz * ry, vy + oz * rx - ox * rz, vz + ox * ry - oy * rx,
                                              ox, oy, oz, dt))
+        shift[c] = d2max
+
+
+CBLOCK = 64  # clumps per parallel work item
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def _clump_region(settings, particles, clumps, terms, shift):
+    """:func:`_advance_clumps` over blocks of ``CBLOCK`` clumps, in parallel (a clump's members
+    are its own rows: no two work items write one row)."""
+    nc = clumps.mass.size
+    for b in prange((nc + CBLOCK - 1) // CBLOCK):
+        _advance_clumps(b * CBLOCK, min((b + 1) * CBLOCK, nc), settings, particles, clumps, terms, shift)
+
+
+@njit(cache=True, error_model="numpy")
+def integrate_clumps(settings, particles, clumps, terms, shift, integration):
+    """Every clump advanced by one step (:func:`_clump_region`); their terms added to
+    ``integration`` clump by clump in order (the same bits for any thread count). Returns the
+    members' largest squared displacement since the last list build."""
+    _clump_region(settings, particles, clumps, terms, shift)
+    d2max = 0.0
+    for c in range(clumps.mass.size):
+        for k in range(N_INTEGRATION):
+            integration[k] += terms[c, k]
+        d2max = max(d2max, shift[c])
     return d2max
 
 
@@ -614,6 +643,8 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
     contact = np.empty(N_CONTACT_ENERGY)
     boundary = np.empty(N_WALL_ENERGY)
     integration = np.empty(N_INTEGRATION)
+    clump_terms = np.zeros((clumps.mass.size, N_INTEGRATION))
+    clump_shift = np.zeros(clumps.mass.size)
     for _ in range(nsteps):
         _pair_region(nb, settings, particles, params, pairs, e1)
         _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, clumps, e2, dmax)
@@ -630,7 +661,7 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
                 integration[k] += e2[b, N_WALL_ENERGY + k]
         d2 = 0.0
         if clumps.mass.size:
-            d2 = integrate_clumps(settings, particles, clumps, integration)
+            d2 = integrate_clumps(settings, particles, clumps, clump_terms, clump_shift, integration)
         record_energy(books, contact, boundary, integration)
         for b in range(nb):
             d2 = max(d2, dmax[b])
