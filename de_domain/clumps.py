@@ -269,23 +269,14 @@ class Clumps:
         mass = np.array([t.mass(density[k]) for t, k in zip(chosen, material_of, strict=True)]) * scales**3
         moments = np.array([t.inertia(density[k]) for t, k in zip(chosen, material_of, strict=True)]).reshape(nc, 3) \
             * (scales**5)[:, None]
-        pos = np.empty((m, 3))
-        member_vel = np.empty((m, 3))
-        angmom = np.empty((nc, 3))
-        for c in range(nc):
-            q = tuple(quat[c])
-            body_w = to_body(q, *spin[c])
-            angmom[c] = to_space(q, *(np.array(body_w) * moments[c]))
-            for k in range(member_start[c], member_start[c + 1]):
-                arm = np.array(to_space(q, *member_body[k]))
-                pos[k] = centres[c] + arm
-                member_vel[k] = vel[c] + np.cross(spin[c], arm)
+        pos, member_vel, angmom = _rigid_motion(quat, centres, vel, spin, moments, member_start, member_body)
         sphere_mass = density[material_of[owner]] * 4.0 / 3.0 * np.pi * radius**3
         members = Particles(pos, radius, mass[owner], inertia=0.4 * sphere_mass * radius**2, vel=member_vel,
                             angvel=spin[owner], material=material_of[owner])
         member_of = owner.astype(np.int32)
         if spheres is not None:
-            members = _concatenate(members, spheres)
+            members = Particles.from_arrays({k: np.concatenate([getattr(members, k), getattr(spheres, k)])
+                                             for k in ARRAY_FIELDS}, members.n + spheres.n)
             member_of = np.concatenate([member_of, np.full(spheres.n, -1, np.int32)])
             sphere_mass = np.concatenate([sphere_mass, spheres.mass])
         clumps = cls(member_of=member_of, member_start=member_start, member_index=np.arange(m, dtype=np.int64),
@@ -299,17 +290,40 @@ class Clumps:
 
     def angular_velocity(self):
         """ω^{n−½} of each clump in the space frame, R I⁻¹ Rᵀ L (nc, 3)."""
-        out = np.empty((self.count, 3))
-        for c in range(self.count):
-            q = tuple(self.quat[c])
-            out[c] = to_space(q, *(np.array(to_body(q, *self.angmom[c])) / self.moments[c]))
-        return out
+        return _angular_velocities(self.quat, self.angmom, self.moments)
 
 
-def _concatenate(first, second):
-    """One Particles set of the rows of ``first`` then ``second`` (neither distributed)."""
-    out = Particles.__new__(Particles)
-    for name in ARRAY_FIELDS:
-        setattr(out, name, np.concatenate([getattr(first, name), getattr(second, name)]))
-    out.ghost = np.zeros(out.pos.shape[0], np.bool_)
+@njit(cache=True)
+def _rigid_motion(quat, centres, vel, spin, moments, member_start, member_body):
+    """Clumps at ``centres`` turned by ``quat`` (principal frame → space), moving at ``vel`` and
+    spinning at ``spin``: their members' positions x_c + R b_m and velocities v_c + ω × R b_m, and
+    the clumps' angular momenta R I Rᵀ ω."""
+    pos = np.empty_like(member_body)
+    member_vel = np.empty_like(member_body)
+    angmom = np.empty_like(centres)
+    for c in range(centres.shape[0]):
+        q = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
+        wx, wy, wz = spin[c, 0], spin[c, 1], spin[c, 2]
+        bx, by, bz = to_body(q, wx, wy, wz)
+        angmom[c, 0], angmom[c, 1], angmom[c, 2] = to_space(q, bx * moments[c, 0], by * moments[c, 1],
+                                                          bz * moments[c, 2])
+        for k in range(member_start[c], member_start[c + 1]):
+            rx, ry, rz = to_space(q, member_body[k, 0], member_body[k, 1], member_body[k, 2])
+            pos[k, 0] = centres[c, 0] + rx
+            pos[k, 1] = centres[c, 1] + ry
+            pos[k, 2] = centres[c, 2] + rz
+            member_vel[k, 0] = vel[c, 0] + wy * rz - wz * ry
+            member_vel[k, 1] = vel[c, 1] + wz * rx - wx * rz
+            member_vel[k, 2] = vel[c, 2] + wx * ry - wy * rx
+    return pos, member_vel, angmom
+
+
+@njit(cache=True)
+def _angular_velocities(quat, angmom, moments):
+    """R I⁻¹ Rᵀ L of each clump (space frame)."""
+    out = np.empty_like(angmom)
+    for c in range(angmom.shape[0]):
+        q = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
+        bx, by, bz = to_body(q, angmom[c, 0], angmom[c, 1], angmom[c, 2])
+        out[c, 0], out[c, 1], out[c, 2] = to_space(q, bx / moments[c, 0], by / moments[c, 1], bz / moments[c, 2])
     return out

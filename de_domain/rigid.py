@@ -24,7 +24,6 @@ consecutive steps merged, so the orientations are those of the published scheme.
 """
 import math
 
-import numpy as np
 from numba import njit
 
 
@@ -134,24 +133,3 @@ def rotational_energy(q, p, inertia):
     """½ Σ_k L_b,k² / I_k, the Hamiltonian of the free body that NO_SQUISH keeps."""
     b1, b2, b3 = body_momentum(q, p)
     return 0.5 * (b1 * b1 / inertia[0] + b2 * b2 / inertia[1] + b3 * b3 / inertia[2])
-
-
-def quaternion_from_matrix(rotation):
-    """The unit quaternion of a proper rotation matrix (columns: the body axes in the space
-    frame), q0 ≥ 0 (Shepperd's method: the largest of the four squares first)."""
-    r = np.asarray(rotation, dtype=float)
-    trace = np.trace(r)
-    squares = np.array([1.0 + trace, 1.0 + 2 * r[0, 0] - trace, 1.0 + 2 * r[1, 1] - trace, 1.0 + 2 * r[2, 2] - trace])
-    k = int(np.argmax(squares))
-    q = np.empty(4)
-    q[k] = 0.5 * math.sqrt(squares[k])
-    f = 0.25 / q[k]
-    if k == 0:
-        q[1:] = f * (r[2, 1] - r[1, 2]), f * (r[0, 2] - r[2, 0]), f * (r[1, 0] - r[0, 1])
-    elif k == 1:
-        q[0], q[2], q[3] = f * (r[2, 1] - r[1, 2]), f * (r[0, 1] + r[1, 0]), f * (r[0, 2] + r[2, 0])
-    elif k == 2:
-        q[0], q[1], q[3] = f * (r[0, 2] - r[2, 0]), f * (r[0, 1] + r[1, 0]), f * (r[1, 2] + r[2, 1])
-    else:
-        q[0], q[1], q[2] = f * (r[1, 0] - r[0, 1]), f * (r[0, 2] + r[2, 0]), f * (r[1, 2] + r[2, 1])
-    return q if q[0] >= 0 else -q

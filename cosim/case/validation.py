@@ -310,7 +310,7 @@ def clump_templates(path, dem):
             raise CaseError(path, key, t.members, "each member is [x, y, z, r]: four numbers")
         rows = np.asarray(t.members, float)
         try:
-            templates.append(ClumpTemplate(rows[:, :3], rows[:, 3], grid=100))
+            templates.append(ClumpTemplate(rows[:, :3], rows[:, 3]))
         except ValueError as exc:
             raise CaseError(path, key, t.members, str(exc)) from None
     return templates
