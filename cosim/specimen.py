@@ -34,40 +34,76 @@ def curve_of(sp):
                           sp.truncate_above)
 
 
+CLUMP_PREFIX = "clump_"  # a clumped specimen's entries in specimen.npz (de_domain.clumps.ClumpPacking.arrays)
+
+
 def read_specimen(path):
-    """(positions, radii, height, void ratio or None) of a packing file; the height is
-    the stored plate height (npz made here) or the top of the highest grain."""
+    """The :class:`~de_domain.deposition.Specimen` of a packing file (its ``void_ratio`` None when
+    the file does not say); the height is the stored plate height (npz made here) or the top of the
+    highest grain. A specimen.npz of clumped grains brings its clumps."""
+    from de_domain.clumps import ClumpPacking
+    from de_domain.deposition import Specimen
     from de_domain.packing import load_packing
     pos, radii = load_packing(path)
-    height, e = None, None
+    height, e, clumps = None, None, None
     if str(path).endswith(".npz"):
         with np.load(path) as data:
             height = float(data["height"]) if "height" in data else None
             e = float(data["void_ratio"]) if "void_ratio" in data else None
+            if CLUMP_PREFIX + "template_of" in data:
+                clumps = ClumpPacking.from_arrays({k[len(CLUMP_PREFIX):]: data[k] for k in data
+                                                   if k.startswith(CLUMP_PREFIX)})
     if height is None:
         height = float(np.max(pos[:, 2] + radii))
-    return pos, radii, height, e
+    return Specimen(pos, radii, height, e, "file", clumps=clumps)
 
 
-def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None):
-    """Generate the specimen of ``case.specimen`` in ``box`` (or read it from ``cache`` if that
-    file exists); returns (positions, radii, height, info dict). Writes ``specimen.npz`` in
-    ``out_dir`` (and ``cache``). With ``comm``, collective: the generation's DEM is spread over
-    the ranks, rank 0 writes."""
-    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
+def save_specimen(path, specimen):
+    """Write a specimen as ``.npz`` (:func:`read_specimen` reads it back, clumps included)."""
     from de_domain.packing import save_packing
+    clumps = {} if specimen.clumps is None else {CLUMP_PREFIX + k: v for k, v in specimen.clumps.arrays().items()}
+    save_packing(path, specimen.positions, specimen.radii, height=specimen.height, void_ratio=specimen.void_ratio,
+                 method=specimen.method, **clumps)
+
+
+def grain_shapes(case, case_path):
+    """The clumped grains of ``[specimen] grains = 'clumps'`` (de_domain.deposition.GrainShapes of
+    the [[dem.clumps]] templates), or None for spheres."""
+    if case.specimen.grains != "clumps":
+        return None
+    from cosim.case.validation import clump_templates
+    from de_domain.deposition import GrainShapes
+    return GrainShapes(clump_templates(case_path, case.dem), tuple(t.share for t in case.dem.clumps))
+
+
+def grains_text(specimen):
+    """'N grains' or 'N clumps of M spheres'."""
+    if specimen.clumps is None:
+        return f"{len(specimen.radii)} grains"
+    return f"{specimen.clumps.count} clumped grains of {len(specimen.radii)} spheres"
+
+
+def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None, label=None, shapes=None):
+    """Generate the specimen of ``case.specimen`` in ``box`` (or read it from ``cache`` if that
+    file exists), of clumped grains with ``shapes`` (:func:`grain_shapes`); returns
+    (:class:`~de_domain.deposition.Specimen`, info dict). Writes ``specimen.npz`` in ``out_dir``
+    (and ``cache``). With ``comm``, collective: the generation's DEM is spread over the ranks,
+    rank 0 writes."""
+    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, generate, solid_volume_for
     sp = case.specimen
     name = label or case.case.name
     if cache is not None and Path(cache).exists():
-        pos, radii, height, e = read_specimen(cache)
-        say(f"[{name}] specimen from {cache}: {len(radii)} grains, h = {height * 1e3:.3f} mm, e = {e:.4f}")
-        return pos, radii, height, {"source": str(cache), "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
+        specimen = read_specimen(cache)
+        e = specimen.void_ratio
+        say(f"[{name}] specimen from {cache}: {grains_text(specimen)}, h = {specimen.height * 1e3:.3f} mm, "
+            f"e = {e:.4f}")
+        return specimen, {"source": str(cache), "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
     mats = box.materials
     rng = np.random.default_rng(case.case.seed)
     volume = box.length * box.width * box.height
     diameters = diameters_for_solid_volume(curve, solid_volume_for(sp.void_ratio, volume), rng)
     say(f"[{name}] generating the specimen ({sp.method}) in {box.length * 1e3:.1f} x {box.width * 1e3:.1f} x "
-        f"{box.height * 1e3:.1f} mm: {len(diameters)} grains, "
+        f"{box.height * 1e3:.1f} mm: {len(diameters)} {'clumped ' if shapes else ''}grains, "
         f"d = {diameters.min() * 1e3:.2f}-{diameters.max() * 1e3:.2f} mm, target e = {sp.void_ratio}")
     grain = mats[box.sand]
     if sp.deposition_material is not None:  # the grains' own material while they are deposited
@@ -86,7 +122,8 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
         max_steps_per_layer=sp.max_steps_per_layer,
         seed=case.case.seed)
     t0 = time.perf_counter()
-    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm)
+    specimen = generate(sp.method, diameters, settings, log=lambda text: say(f"[{name}] {text}"), comm=comm,
+                        shapes=shapes)
     wall_clock = time.perf_counter() - t0
     ok = abs(specimen.void_ratio - sp.void_ratio) <= sp.tolerance
     say(f"[{name}] specimen: e = {specimen.void_ratio:.4f} (target {sp.void_ratio} ± {sp.tolerance}: "
@@ -94,40 +131,55 @@ def make_specimen(case, box: SpecimenBox, curve, out_dir, cache=None, comm=None,
     targets = [Path(out_dir) / "specimen.npz"] + ([Path(cache)] if cache is not None else [])
     for target in targets if is_root() else []:
         target.parent.mkdir(parents=True, exist_ok=True)
-        save_packing(target, specimen.positions, specimen.radii, height=specimen.height,
-                     void_ratio=specimen.void_ratio, method=specimen.method)
+        save_specimen(target, specimen)
     info = {"source": sp.method, "void_ratio_generated": specimen.void_ratio, "void_ratio_target": sp.void_ratio,
             "void_ratio_within_tolerance": bool(ok), "generation_steps": specimen.steps,
             "generation_wall_clock_s": wall_clock, "generation_log": specimen.log}
-    return specimen.positions, specimen.radii, specimen.height, info
+    return specimen, info
 
 
 def read_lab_inputs(case, case_path, length, width):
     """What a lab test reads before computing (its ``prepare``): the packing file, whose grains
     must lie in the ``length`` × ``width`` box (overlapping a side by at most 25 % of a radius),
-    or the sieve curve. Returns (built dict, the smallest grain's radius); bad input is a
-    CaseError naming the key."""
+    or the sieve curve (and the clumped grains' shapes). Returns (built dict, the smallest
+    sphere's radius: a clump's smallest member); bad input is a CaseError naming the key."""
     from cosim.case.paths import resolve_path
     from cosim.errors import CaseError
     sp = case.specimen
+    if sp.grains == "clumps":
+        _one_process(case_path, "specimen.grains", sp.grains)
     if sp.source == "generate":
         try:
             curve = curve_of(sp)
         except ValueError as exc:
             raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
-        return {"curve": curve}, 0.5 * float(curve.diameters[0])
+        shapes = grain_shapes(case, case_path)
+        r_min = 0.5 * float(curve.diameters[0]) * (shapes.smallest_member_fraction() if shapes else 1.0)
+        return {"curve": curve, "shapes": shapes}, r_min
     from cosim.apps.dem import warn_overlaps
     try:
         packing = read_specimen(resolve_path(case_path, sp.file))
     except Exception as exc:
         raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
-    pos, radii, _, _ = packing
+    if packing.clumps is not None:
+        _one_process(case_path, "specimen.file", sp.file)
+    pos, radii = packing.positions, packing.radii
     slack = 0.25 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
     if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > (length, width) + slack):
         raise CaseError(case_path, "specimen.file", sp.file, f"the grains must lie inside the {length} m x {width} m "
                         "box (x, y inside it, overlapping a side by at most 25 % of the radius)")
-    warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
+    if packing.clumps is None:  # a clump's members overlap by design
+        warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
     return {"packing": packing}, float(radii.min())
+
+
+def _one_process(case_path, key, value):
+    """Clumped grains run on one process (de_domain.Engine); under ``mpirun -n N`` a CaseError."""
+    from cosim.errors import CaseError
+    from cosim.outputs import mpi_comm
+    if mpi_comm().size > 1:
+        raise CaseError(case_path, key, value, "clumped grains run on one process for now (its cores through "
+                        "NUMBA_NUM_THREADS); run without mpirun")
 
 
 def check_grain_time_step(case, case_path, mats, sand, radius):
@@ -143,10 +195,13 @@ def check_grain_time_step(case, case_path, mats, sand, radius):
 def lab_specimen(case, built, box: SpecimenBox, out_dir, cache=None, comm=None):
     """A lab test's specimen (direct_shear, triaxial): the packing file read by
     :func:`read_lab_inputs` (unless ``cache`` exists), or generated in ``box``
-    (:func:`make_specimen`); returns (positions, radii, height, info); collective with ``comm``."""
+    (:func:`make_specimen`, of the clumped grains ``built["shapes"]`` if any); returns
+    (:class:`~de_domain.deposition.Specimen`, info); collective with ``comm``."""
     sp = case.specimen
     if sp.source == "file" and not (cache is not None and Path(cache).exists()):
-        pos, radii, height, e = built["packing"]
-        say(f"[{case.case.name}] specimen from {sp.file}: {len(radii)} grains, h = {height * 1e3:.3f} mm")
-        return pos, radii, height, {"source": sp.file, "void_ratio_generated": e, "generation_wall_clock_s": 0.0}
-    return make_specimen(case, box, built.get("curve"), out_dir, cache, comm)
+        specimen = built["packing"]
+        say(f"[{case.case.name}] specimen from {sp.file}: {grains_text(specimen)}, "
+            f"h = {specimen.height * 1e3:.3f} mm")
+        return specimen, {"source": sp.file, "void_ratio_generated": specimen.void_ratio,
+                          "generation_wall_clock_s": 0.0}
+    return make_specimen(case, box, built.get("curve"), out_dir, cache, comm, shapes=built.get("shapes"))

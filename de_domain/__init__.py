@@ -35,11 +35,15 @@ viscous_damping=0.0, skin=None, comm=None, clumps=None)``
 ``de_domain.clumps``: ``ClumpTemplate(centres, radii)`` (mass properties of the union of the
 members, principal frame), ``ClumpTemplate.line(count, aspect_ratio, radius)``,
 ``Clumps.place(templates, template_of, centres, orientations, materials, ...)`` → (particles,
-clumps) for ``Engine(..., clumps=clumps)`` (one process; docs/design.md §2.19).
+clumps) for ``Engine(..., clumps=clumps)`` (one process; docs/design.md §2.19);
+``ClumpPacking`` (clumps between engines: templates, sizes, places, orientations; a specimen's
+``clumps``) and ``clump_cloud``. ``de_domain.deposition.generate(method, diameters, settings,
+shapes=GrainShapes(templates, shares))`` makes a specimen of clumped grains.
 
 ``de_domain.diagnostics`` (each takes the engine, some a region): ``unbalanced_force_ratio``, ``kinetic_energy``,
 ``coordination_number``, ``solid_volume``, ``porosity``, ``void_ratio``,
-``love_weber_stress`` with ``BoxRegion(lo, hi)`` / ``SphereRegion(center, radius)``.
+``love_weber_stress`` with ``BoxRegion(lo, hi)`` / ``SphereRegion(center, radius)``, ``grain_radii``;
+a clump counts as one grain.
 
 ``de_domain.io``: ``write_particles_vtu(path, particles, clump=None)``, ``write_facets_vtu(path, mesh)``,
 ``write_frame(directory, engine, step)``.

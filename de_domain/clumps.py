@@ -13,7 +13,7 @@ midpoint rule, whose error at the members' rims falls as N^{-3/2}: at N = 400 th
 inertia of one sphere, of two overlapping spheres and of a line of three are within 1e-4 of
 their closed forms (tests/dem/test_clumps.py).
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -203,6 +203,20 @@ def check_members(centres, radii):
                          "clump must overlap or touch, as one body")
 
 
+def member_layout(templates, template_of, scales):
+    """The members of clumps of ``templates[template_of[c]]`` enlarged ``scales[c]`` times, clump by
+    clump in template order: (``member_start`` (nc + 1,), the clump of each member, member centres in
+    the clump's principal frame (m, 3), member radii (m,))."""
+    counts = np.array([templates[t].count for t in template_of], np.int64)
+    member_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    owner = np.repeat(np.arange(template_of.size), counts)
+    body = (np.concatenate([templates[t].members for t in template_of]) if template_of.size
+            else np.zeros((0, 3))) * scales[owner, None]
+    radius = (np.concatenate([templates[t].radii for t in template_of]) if template_of.size
+              else np.zeros(0)) * scales[owner]
+    return member_start, owner, body, radius
+
+
 class Clumps:
     """Rigid clumps of member spheres (docs/design.md §2.19), over the rows of a
     :class:`~de_domain.Particles` set in its public order; the engine steps them
@@ -258,13 +272,8 @@ class Clumps:
         spin = np.zeros((nc, 3)) if angular_velocities is None else np.asarray(angular_velocities, float).reshape(nc, 3)
         scales = np.ones(nc) if scales is None else np.asarray(scales, float).reshape(nc)
         density, _, _ = material_arrays(materials)
-        counts = np.array([templates[t].count for t in template_of], np.int64)
-        member_start = np.concatenate([[0], np.cumsum(counts)])
+        member_start, owner, member_body, radius = member_layout(templates, template_of, scales)
         m = int(member_start[-1])
-        owner = np.repeat(np.arange(nc), counts)
-        member_body = (np.concatenate([templates[t].members for t in template_of]) if nc else np.zeros((0, 3))) \
-            * scales[owner, None]
-        radius = (np.concatenate([templates[t].radii for t in template_of]) if nc else np.zeros(0)) * scales[owner]
         chosen = [templates[t] for t in template_of]
         mass = np.array([t.mass(density[k]) for t, k in zip(chosen, material_of, strict=True)]) * scales**3
         moments = np.array([t.inertia(density[k]) for t, k in zip(chosen, material_of, strict=True)]).reshape(nc, 3) \
@@ -291,6 +300,111 @@ class Clumps:
     def angular_velocity(self):
         """ω^{n−½} of each clump in the space frame, R I⁻¹ Rᵀ L (nc, 3)."""
         return _angular_velocities(self.quat, self.angmom, self.moments)
+
+
+@dataclass
+class ClumpPacking:
+    """Clumps as a packing holds them between engines (a specimen being generated, a specimen
+    file): ``templates`` (:class:`ClumpTemplate`), and per clump its template ``template_of``,
+    its enlargement ``scale`` (lengths × s), centre of mass ``centres`` (nc, 3), orientation
+    ``orientations`` (nc, 4; principal frame → space), velocity and angular velocity (nc, 3)."""
+    templates: list
+    template_of: np.ndarray
+    scale: np.ndarray
+    centres: np.ndarray
+    orientations: np.ndarray
+    velocities: np.ndarray = None
+    angular_velocities: np.ndarray = None
+
+    def __post_init__(self):
+        nc = np.asarray(self.template_of).size
+        self.template_of = np.asarray(self.template_of, np.int64).reshape(nc)
+        self.scale = np.asarray(self.scale, float).reshape(nc)
+        self.centres = np.asarray(self.centres, float).reshape(nc, 3)
+        self.orientations = np.asarray(self.orientations, float).reshape(nc, 4)
+        for name in ("velocities", "angular_velocities"):
+            value = getattr(self, name)
+            setattr(self, name, np.zeros((nc, 3)) if value is None else np.asarray(value, float).reshape(nc, 3))
+
+    @property
+    def count(self):
+        return self.template_of.size
+
+    def volumes(self):
+        """The union volume of each clump (nc,)."""
+        return np.array([t.volume for t in self.templates])[self.template_of] * self.scale**3
+
+    def equivalent_radii(self):
+        """The radius of the sphere of each clump's volume (nc,)."""
+        return (3.0 * self.volumes() / (4.0 * np.pi)) ** (1.0 / 3.0)
+
+    def enclosing_radii(self):
+        """The radius of each clump's smallest enclosing sphere about its centre (nc,)."""
+        return np.array([t.reach() for t in self.templates])[self.template_of] * self.scale
+
+    def smallest_member_radius(self):
+        """The smallest member sphere of any clump (its critical time step is the packing's)."""
+        return float(np.min(np.array([t.radii.min() for t in self.templates])[self.template_of] * self.scale))
+
+    def bodies(self, materials, material=0, size=1.0):
+        """(particles, clumps) for an Engine (:meth:`Clumps.place`), every clump of ``material`` and
+        enlarged a further ``size`` times about its centre."""
+        return Clumps.place(self.templates, self.template_of, self.centres, self.orientations, materials,
+                            np.full(self.count, material, np.int32), self.velocities, self.angular_velocities,
+                            scales=self.scale * size)
+
+    def moved(self, engine):
+        """This packing at the state of ``engine``'s clumps (built from :meth:`bodies`)."""
+        c = engine.clumps
+        return replace(self, centres=c.pos.copy(), orientations=c.quat.copy(), velocities=c.vel.copy(),
+                       angular_velocities=c.angular_velocity())
+
+    def joined(self, other):
+        """This packing followed by ``other`` (the same templates)."""
+        both = lambda name: np.concatenate([getattr(self, name), getattr(other, name)])  # noqa: E731
+        return ClumpPacking(self.templates, *(both(k) for k in ("template_of", "scale", "centres", "orientations",
+                                                                  "velocities", "angular_velocities")))
+
+    def members(self):
+        """(positions, radii) of every member sphere, clump by clump in template order."""
+        start, _, body, radii = member_layout(self.templates, self.template_of, self.scale)
+        quat = self.orientations / np.linalg.norm(self.orientations, axis=1)[:, None]
+        pos, _, _ = _rigid_motion(quat, self.centres, self.velocities, self.angular_velocities,
+                                  np.ones((self.count, 3)), start, body)
+        return pos, radii
+
+    def arrays(self):
+        """The packing as named arrays (a specimen file's ``clump_*`` entries): the templates'
+        members as given (``template_members`` (k, 4): x, y, z, r; ``template_start``) and the
+        per-clump arrays."""
+        return {"template_members": np.concatenate([np.column_stack([t.centres, t.radii]) for t in self.templates]),
+                "template_start": np.concatenate([[0], np.cumsum([t.count for t in self.templates])]),
+                "template_of": self.template_of, "scale": self.scale, "centres": self.centres,
+                "orientations": self.orientations}
+
+    @classmethod
+    def from_arrays(cls, arrays):
+        """The packing of :meth:`arrays` (at rest)."""
+        members, start = np.asarray(arrays["template_members"], float), np.asarray(arrays["template_start"])
+        templates = [ClumpTemplate(members[a:b, :3], members[a:b, 3])
+                     for a, b in zip(start[:-1], start[1:], strict=True)]
+        return cls(templates, arrays["template_of"], arrays["scale"], arrays["centres"], arrays["orientations"])
+
+
+def clump_cloud(templates, template_of, diameters, lo, hi, seed, rng):
+    """Clumps of ``templates[template_of[c]]``, each enlarged to the equal-volume ``diameters[c]``,
+    at random places in the box [lo, hi] where their enclosing spheres do not overlap
+    (:func:`de_domain.packing.random_cloud`, largest first, with ``seed``), in random orientations
+    (uniform unit quaternions drawn from ``rng``), at rest. Raises ValueError if they do not fit."""
+    from .packing import random_cloud
+    template_of = np.asarray(template_of, np.int64)
+    scale = 0.5 * np.asarray(diameters, float) / np.array([t.equivalent_radius() for t in templates])[template_of]
+    enclosing = scale * np.array([t.reach() for t in templates])[template_of]
+    order = np.argsort(enclosing, kind="stable")[::-1]  # random_cloud places the largest first
+    centres, _ = random_cloud(enclosing[order], lo, hi, seed=seed)
+    orientations = rng.normal(size=(template_of.size, 4))
+    return ClumpPacking(templates, template_of[order], scale[order], centres,
+                        orientations / np.linalg.norm(orientations, axis=1)[:, None])
 
 
 @njit(cache=True)

@@ -195,8 +195,10 @@ class GenerationSettings:
 
 @dataclass
 class Specimen:
-    """A generated specimen: sphere centres and radii (m), the plate height at the end
-    (the specimen height) and the achieved void ratio, with a per-stage log."""
+    """A generated specimen: sphere centres and radii (m; a clumped specimen's member spheres),
+    the plate height at the end (the specimen height) and the achieved void ratio, with a
+    per-stage log; ``clumps`` (:class:`~de_domain.clumps.ClumpPacking`) the grains the spheres
+    make up, or None."""
 
     positions: np.ndarray
     radii: np.ndarray
@@ -205,9 +207,98 @@ class Specimen:
     method: str
     steps: int = 0
     log: list = field(default_factory=list)
+    clumps: object = None
 
     def metadata(self):
         return {"height": self.height, "void_ratio": self.void_ratio, "method": self.method}
+
+    def grain_radii(self):
+        """The equal-volume radius of every grain (a clump's: of its union)."""
+        return self.radii if self.clumps is None else self.clumps.equivalent_radii()
+
+    def bodies(self, materials, material):
+        """(particles, clumps or None) for an Engine: the grains at rest, of ``material``."""
+        grains = SpherePacking(self.positions, self.radii) if self.clumps is None else self.clumps
+        return grains.bodies(materials, material)
+
+
+@dataclass
+class SpherePacking:
+    """Spheres as the generation holds them between engines; the same interface as
+    :class:`~de_domain.clumps.ClumpPacking` (a clumped specimen's state)."""
+
+    centres: np.ndarray
+    radii: np.ndarray
+    velocities: np.ndarray = None
+    angular_velocities: np.ndarray = None
+
+    def __post_init__(self):
+        for name in ("velocities", "angular_velocities"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros_like(self.centres))
+
+    def volumes(self):
+        return 4.0 / 3.0 * np.pi * self.radii**3
+
+    def enclosing_radii(self):
+        return self.radii
+
+    def bodies(self, materials, material=0, size=1.0):
+        """(particles, None) for an Engine, radii × ``size``."""
+        from . import Particles
+        p = Particles.from_spheres(self.centres, self.radii * size, np.full(self.radii.size, material, np.int32),
+                                   materials, velocities=self.velocities)
+        p.angvel[:] = self.angular_velocities
+        return p, None
+
+    def moved(self, engine):
+        """These spheres at the state of ``engine`` (collective when distributed)."""
+        grains = engine.global_particles()
+        return replace(self, centres=grains.pos.copy(), velocities=grains.vel.copy(),
+                       angular_velocities=grains.angvel.copy())
+
+    def joined(self, other):
+        both = lambda name: np.concatenate([getattr(self, name), getattr(other, name)])  # noqa: E731
+        return SpherePacking(*(both(k) for k in ("centres", "radii", "velocities", "angular_velocities")))
+
+    def members(self):
+        return self.centres, self.radii
+
+
+def _cloud(diameters, template_of, lo, hi, seed, shapes, rng, size=1.0):
+    """The grains of ``diameters`` (equal-volume diameters) at random non-overlapping places in
+    the box [lo, hi], at rest, placed at ``size`` × their size and kept at full size (largest
+    first): spheres, or with ``shapes`` clumps of the templates ``template_of``, their
+    orientations drawn from ``rng``. Raises ValueError if they do not fit."""
+    radii = 0.5 * np.asarray(diameters, float)
+    if shapes is None:
+        pos, _ = random_cloud(radii * size, lo, hi, seed=seed)
+        return SpherePacking(pos, radii[np.argsort(-radii, kind="stable")])  # random_cloud's order
+    from .clumps import clump_cloud
+    placed = clump_cloud(shapes.templates, template_of, np.asarray(diameters, float) * size, lo, hi, seed, rng)
+    return replace(placed, scale=placed.scale / size)
+
+
+@dataclass(frozen=True)
+class GrainShapes:
+    """Clumped grains: ``templates`` (:class:`~de_domain.clumps.ClumpTemplate`) drawn by number
+    ``shares``; each grain is its template enlarged to the sieve curve's diameter (equal volume)."""
+
+    templates: list
+    shares: tuple
+
+    def draw(self, count, rng):
+        """The template of each of ``count`` grains."""
+        share = np.asarray(self.shares, float)
+        return rng.choice(len(self.templates), size=count, p=share / share.sum())
+
+    def smallest_member_fraction(self):
+        """min over templates of (smallest member radius / equal-volume radius)."""
+        return min(float(t.radii.min()) / t.equivalent_radius() for t in self.templates)
+
+    def reach_ratios(self):
+        """Each template's enclosing radius over its equal-volume radius (≥ 1)."""
+        return np.array([t.reach() / t.equivalent_radius() for t in self.templates])
 
 
 # --------------------------------------------------------------------------- engine plumbing
@@ -239,15 +330,14 @@ def _box_walls(s, plate_z):
     return walls
 
 
-def _engine(s, pos, radii, vel, angvel, friction, plate_z, gravity, dt=None, comm=None):
-    from . import Engine, Particles
+def _engine(s, grains, friction, plate_z, gravity, dt=None, comm=None, size=1.0):
+    """The generation's engine of ``grains`` (:class:`SpherePacking` or clumps), enlarged ``size`` times."""
+    from . import Engine
     mats = _materials(s, friction)
     gravity = tuple(np.asarray(gravity, float) / s.density_scale)  # real weights (module docstring)
-    p = Particles.from_spheres(pos, radii, np.zeros(len(radii), np.int32), mats, velocities=vel)
-    if angvel is not None:
-        p.angvel[:] = angvel
-    return Engine(p, mats, walls=_box_walls(s, plate_z), contact_law=s.contact_law, gravity=gravity,
-                  dt=dt, safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm)
+    particles, clumps = grains.bodies(mats, 0, size)
+    return Engine(particles, mats, walls=_box_walls(s, plate_z), contact_law=s.contact_law, gravity=gravity,
+                  dt=dt, safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm, clumps=clumps)
 
 
 def _plate_stress(engine, s):
@@ -259,10 +349,9 @@ def _unbalanced(engine):
     return unbalanced_force_ratio(engine)
 
 
-def _rebuild(engine, s, friction, gravity):
-    p = engine.global_particles()
-    return _engine(s, p.pos, p.radius, p.vel, p.angvel, friction, engine.walls[5].point[2], gravity, engine.dt,
-                   _comm(engine))
+def _rebuild(engine, grains, s, friction, gravity):
+    """A new engine of ``grains`` (those ``engine`` was built from) where ``engine`` left them."""
+    return _engine(s, grains.moved(engine), friction, engine.walls[5].point[2], gravity, engine.dt, _comm(engine))
 
 
 def _top_of_grains(engine):
@@ -281,7 +370,7 @@ def _say(log, text):
         log(text)
 
 
-def _compact_to(engine, s, z_target, friction, log, label, max_steps):
+def _compact_to(engine, grains, s, z_target, friction, log, label, max_steps):
     """Move the plate down to ``z_target`` (lowering friction if the stress exceeds the
     limit), hold it there until the unbalanced force ratio is below the threshold.
     Returns (engine, friction, steps)."""
@@ -306,7 +395,7 @@ def _compact_to(engine, s, z_target, friction, log, label, max_steps):
             friction = 0.0 if friction < 0.02 else s.friction_reduction * friction
             _say(log, f"{label}: plate stress {_plate_stress(engine, s):.3g} Pa above the limit at "
                       f"z = {plate.point[2] * 1e3:.2f} mm; grain friction lowered to {friction:.3g}")
-            engine = _rebuild(engine, s, friction, s.gravity)
+            engine = _rebuild(engine, grains, s, friction, s.gravity)
             engine.walls[5].velocity = np.array([0.0, 0.0, -s.plate_velocity])
             if friction == 0.0:
                 s_limit = s.plate_stress_limit
@@ -393,99 +482,103 @@ def _release_plate(engine, s, log, max_steps):
 
 
 # --------------------------------------------------------------------------- methods
-def under_compaction(diameters, s: GenerationSettings, log=None, comm=None):
+def under_compaction(diameters, s: GenerationSettings, log=None, comm=None, shapes=None):
     """Multi-layer under-compaction (module docstring). ``diameters``: all grains of the
-    specimen (their volume fixes V_s). Returns a :class:`Specimen`. With ``comm``, every
-    stage's DEM is spread over its ranks (collective; the same specimen, bit for bit)."""
+    specimen (their volume fixes V_s); ``shapes`` (:class:`GrainShapes`): clumped grains of
+    these equal-volume diameters (default: spheres). Returns a :class:`Specimen`. With ``comm``,
+    every stage's DEM is spread over its ranks (collective; the same specimen, bit for bit)."""
     rng = np.random.default_rng(s.seed)
-    (L, Ly), H = s.sides, s.height
+    shape_rng = np.random.default_rng([s.seed, 1])  # the clumps' templates and orientations
+    H = s.height
     n_layers = s.layers or layer_count(s.void_ratio, s.cloud_solid_fraction, H, float(np.max(diameters)))
     groups = split_into_layers(np.asarray(diameters, float), n_layers, rng)
     tops = layer_tops(n_layers, H, s.undercompaction)
     start_friction = _start_friction(s)
-    dt = s.safety_factor * _critical_dt_all(s, diameters)  # one dt for every stage
-    pos = np.zeros((0, 3))
-    radii = np.zeros(0)
-    engine = None
+    dt = s.safety_factor * _critical_dt_all(s, diameters, shapes)  # one dt for every stage
+    grains = None
     steps = 0
     stages = []
     for k, (group, z_k) in enumerate(zip(groups, tops, strict=True), start=1):
-        r_new = 0.5 * group
-        surface = float(np.max(pos[:, 2] + radii)) if len(radii) else 0.0
-        cloud_height = np.sum(np.pi / 6 * group**3) / (s.cloud_solid_fraction * s.area)
-        lo = np.array([0.0, 0.0, surface])
-        for attempt in range(8):
-            hi = np.array([L, Ly, surface + cloud_height * 1.25**attempt + 2 * r_new.max()])
-            try:
-                new_pos, r_new = random_cloud(r_new, lo, hi, seed=s.seed + k + 1000 * attempt)
-                break
-            except ValueError:
-                continue
-        else:
-            raise RuntimeError(f"layer {k}: could not place a non-overlapping cloud of {len(r_new)} grains")
-        vel = np.zeros((len(radii) + len(r_new), 3))
-        angvel = np.zeros_like(vel)
-        if engine is not None:
-            grains = engine.global_particles()
-            vel[: len(radii)] = grains.vel
-            angvel[: len(radii)] = grains.angvel
-        pos = np.concatenate([pos, new_pos])
-        radii = np.concatenate([radii, r_new])
-        plate_z = float(np.max(new_pos[:, 2] + r_new)) + 1e-4
-        engine = _engine(s, pos, radii, vel, angvel, start_friction, plate_z, s.gravity, dt, comm)
+        surface = float(np.max(grains.centres[:, 2] + grains.enclosing_radii())) if grains is not None else 0.0
+        new = _layer_cloud(group, surface, s, k, shapes, shape_rng)
+        grains = new if grains is None else grains.joined(new)
+        plate_z = float(np.max(new.centres[:, 2] + new.enclosing_radii())) + 1e-4
+        engine = _engine(s, grains, start_friction, plate_z, s.gravity, dt, comm)
         label = f"layer {k}/{n_layers}"
-        engine, friction, n = _compact_to(engine, s, z_k, start_friction, log, label, s.max_steps_per_layer)
+        engine, friction, n = _compact_to(engine, grains, s, z_k, start_friction, log, label, s.max_steps_per_layer)
         steps += n
         uf = _unbalanced(engine)
-        stages.append({"layer": k, "grains": len(r_new), "plate_height": float(engine.walls[5].point[2]),
+        stages.append({"layer": k, "grains": len(group), "plate_height": float(engine.walls[5].point[2]),
                        "plate_stress": _plate_stress(engine, s), "unbalanced_force": uf, "friction": friction,
                        "steps": n})
-        _say(log, f"{label}: {len(r_new)} grains, plate at {engine.walls[5].point[2] * 1e3:.3f} mm "
+        _say(log, f"{label}: {len(group)} grains, plate at {engine.walls[5].point[2] * 1e3:.3f} mm "
                   f"(target {z_k * 1e3:.3f}), stress {_plate_stress(engine, s):.3g} Pa, "
                   f"unbalanced force {uf:.3g}, {n} steps")
-        grains = engine.global_particles()
-        pos, radii = grains.pos.copy(), grains.radius.copy()
+        grains = grains.moved(engine)
     engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
     steps += n
     engine, n = _release_plate(engine, s, log, s.max_steps_per_layer)
     steps += n
-    return _specimen(engine, s, "under_compaction", steps, stages)
+    return _specimen(engine, grains, s, "under_compaction", steps, stages)
 
 
-def _specimen(engine, s, method, steps, stages):
-    """The :class:`Specimen` in ``engine`` (collective when distributed)."""
-    grains = engine.global_particles()
+def _layer_cloud(group, surface, s, k, shapes, rng):
+    """Layer ``k``'s grains (``group``: their diameters) as a non-overlapping cloud just above
+    ``surface``, ``cloud_solid_fraction`` of their enclosing spheres' volume over the box's area
+    (the box made taller, up to 8 times, until they fit)."""
+    L, Ly = s.sides
+    template_of = None if shapes is None else shapes.draw(group.size, rng)
+    enclosing = group if shapes is None else group * shapes.reach_ratios()[template_of]  # diameters
+    cloud_height = np.sum(np.pi / 6 * enclosing**3) / (s.cloud_solid_fraction * s.area)
+    lo = np.array([0.0, 0.0, surface])
+    for attempt in range(8):
+        hi = np.array([L, Ly, surface + cloud_height * 1.25**attempt + np.max(enclosing)])
+        try:
+            return _cloud(group, template_of, lo, hi, s.seed + k + 1000 * attempt, shapes, rng)
+        except ValueError:
+            continue
+    raise RuntimeError(f"layer {k}: could not place a non-overlapping cloud of {len(group)} grains")
+
+
+def _specimen(engine, grains, s, method, steps, stages):
+    """The :class:`Specimen` of ``grains`` in ``engine`` (collective when distributed); its void
+    ratio e = (L L_y h − V_s) / V_s with V_s the grains' volume (a clump's: its union's)."""
+    grains = grains.moved(engine)
     height = float(engine.walls[5].point[2])
-    e = void_ratio_of_box(s.area, height, grains.radius)
-    return Specimen(grains.pos.copy(), grains.radius.copy(), height, e, method, steps, stages)
+    solid = float(np.sum(grains.volumes()))
+    positions, radii = grains.members()
+    clumps = None if isinstance(grains, SpherePacking) else replace(grains, velocities=None, angular_velocities=None)
+    return Specimen(positions.copy(), radii.copy(), height, (s.area * height - solid) / solid, method, steps, stages,
+                    clumps=clumps)
 
 
-def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, steps_per_increment=100, comm=None):
+def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, steps_per_increment=100, comm=None,
+                     shapes=None):
     """Grow the grains from reduced radii to full size in the closed box (module docstring);
-    ``comm`` as for :func:`under_compaction`."""
+    ``comm`` and ``shapes`` as for :func:`under_compaction` (a clump grows about its centre; the
+    cloud's solid fraction counts its enclosing sphere)."""
     (L, Ly), H = s.sides, s.height
-    radii_full = 0.5 * np.asarray(diameters, float)
-    solid_fraction = np.sum(4 / 3 * np.pi * radii_full**3) / (s.area * H)
+    shape_rng = np.random.default_rng([s.seed, 1])
+    template_of = None if shapes is None else shapes.draw(len(diameters), shape_rng)
+    enclosing = 0.5 * np.asarray(diameters, float)
+    if shapes is not None:
+        enclosing = enclosing * shapes.reach_ratios()[template_of]
+    solid_fraction = np.sum(4 / 3 * np.pi * enclosing**3) / (s.area * H)
     shrink = min(1.0, (s.cloud_solid_fraction / solid_fraction) ** (1.0 / 3.0))
-    pos, r0 = random_cloud(radii_full * shrink, (0, 0, 0), (L, Ly, H), seed=s.seed)
-    order = np.argsort(-radii_full, kind="stable")  # random_cloud returns radii largest first
-    radii_full = radii_full[order]
+    grains = _cloud(diameters, template_of, (0, 0, 0), (L, Ly, H), s.seed, shapes, shape_rng, size=shrink)
     friction = _start_friction(s)
-    dt = s.safety_factor * _critical_dt_all(s, diameters)
-    vel = np.zeros_like(pos)
-    angvel = np.zeros_like(pos)
+    dt = s.safety_factor * _critical_dt_all(s, diameters, shapes)
     steps = 0
-    engine = None
     for k in range(1, increments + 1):
         f = shrink + (1.0 - shrink) * k / increments
-        engine = _engine(s, pos, radii_full * f, vel, angvel, friction, H, (0.0, 0.0, 0.0), dt, comm)
+        engine = _engine(s, grains, friction, H, (0.0, 0.0, 0.0), dt, comm, size=f)
         engine.run(steps_per_increment)
         steps += steps_per_increment
-        pos, vel, angvel = _motion(engine)
+        grains = grains.moved(engine)
     stages = []
     # equilibrium without gravity, then with gravity
     for label, g in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
-        engine = _engine(s, pos, radii_full, vel, angvel, friction, H, g, dt, comm)
+        engine = _engine(s, grains, friction, H, g, dt, comm)
         n = 0
         while n < s.max_steps_per_layer:
             engine.run(s.check_every)
@@ -499,12 +592,12 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
                        "unbalanced_force": _unbalanced(engine), "steps": n})
         _say(log, f"radius expansion ({label}): plate stress {_plate_stress(engine, s):.3g} Pa, "
                   f"unbalanced force {_unbalanced(engine):.3g}, {n} steps")
-        pos, vel, angvel = _motion(engine)
+        grains = grains.moved(engine)
     engine, n = _seat_plate(engine, s, log, "final", s.max_steps_per_layer)
     steps += n
     engine, n = _release_plate(engine, s, log, s.max_steps_per_layer)
     steps += n
-    return _specimen(engine, s, "radius_expansion", steps, stages)
+    return _specimen(engine, grains, s, "radius_expansion", steps, stages)
 
 
 def _motion(engine):
@@ -513,18 +606,21 @@ def _motion(engine):
     return grains.pos.copy(), grains.vel.copy(), grains.angvel.copy()
 
 
-def _critical_dt_all(s, diameters):
-    """Δt_crit of the smallest grain (linear law, k = 2 E r) with scaled density."""
+def _critical_dt_all(s, diameters, shapes=None):
+    """Δt_crit of the smallest grain (linear law, k = 2 E r) with scaled density; with
+    ``shapes``, of the smallest member sphere any grain can have."""
     r = 0.5 * float(np.min(diameters))
+    if shapes is not None:
+        r *= shapes.smallest_member_fraction()
     m = s.sand.density * s.density_scale * 4.0 / 3.0 * np.pi * r**3
     return math.sqrt(m / (2.0 * s.sand.young * r))
 
 
-def generate(method, diameters, settings, log=None, comm=None):
+def generate(method, diameters, settings, log=None, comm=None, shapes=None):
     """Dispatch to :func:`under_compaction` or :func:`radius_expansion` (with ``comm``: the
-    DEM of every stage spread over its ranks, collective)."""
+    DEM of every stage spread over its ranks, collective; with ``shapes``: clumped grains)."""
     if method == "under_compaction":
-        return under_compaction(diameters, settings, log, comm)
+        return under_compaction(diameters, settings, log, comm, shapes)
     if method == "radius_expansion":
-        return radius_expansion(diameters, settings, log, comm=comm)
+        return radius_expansion(diameters, settings, log, comm=comm, shapes=shapes)
     raise ValueError(f"unknown generation method {method!r}; allowed: under_compaction, radius_expansion")

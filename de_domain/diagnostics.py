@@ -9,6 +9,14 @@ in a region counts the part of every sphere inside it:
   * box region: spheres wholly inside/outside exactly; spheres cut by the box
     faces by a 32 × 32 Gauss–Legendre quadrature of the disc ∩ rectangle area
     over height (relative error of the cut volume ≲ 1e-4).
+
+Clumps (docs/design.md §2.19) are grains: a clump's members count once, as one body.
+Kinetic energy and the unbalanced force are the clumps' (½ M v² + ½ ω·L; the resultant
+M g + Σ F_m), not their members'; the coordination number is contacts per grain (a
+contact between members of two clumps counts for both clumps); Love–Weber branch vectors
+run from the clumps' centres. Solid volume weights each member's part in the region by
+its clump's union volume over the sum of its members' volumes: exact for clumps wholly
+inside or outside the region, and within the overlap's share of a cut clump otherwise.
 """
 from __future__ import annotations
 
@@ -59,13 +67,23 @@ def _rank_sums(engine, values):
     return sum_in_rank_order(domain.comm, values)
 
 
-def kinetic_energy(engine):
-    """Σ ½ m v² + ½ I ω² over owned particles (current half-step velocities); a
-    distributed engine sums over its ranks (collective)."""
+def _free_spheres(engine):
+    """Mask of the owned particles that are free spheres, not members of a clump."""
     p = engine.particles
-    mine = p.owned
+    return p.owned & (engine.clumps.member_of < 0) if engine.clumps.count else p.owned
+
+
+def kinetic_energy(engine):
+    """Σ ½ m v² + ½ I ω² over owned free spheres and Σ ½ M v² + ½ ω·L over clumps (current
+    half-step velocities); a distributed engine sums over its ranks (collective)."""
+    p = engine.particles
+    mine = _free_spheres(engine)
     terms = (0.5 * np.sum(p.mass[mine] * np.sum(p.vel[mine] ** 2, axis=1)),
              0.5 * np.sum(p.inertia[mine] * np.sum(p.angvel[mine] ** 2, axis=1)))
+    c = engine.clumps
+    if c.count:
+        terms = (terms[0] + 0.5 * np.sum(c.mass * np.sum(c.vel**2, axis=1)),
+                 terms[1] + 0.5 * np.sum(c.angular_velocity() * c.angmom))
     if _domain(engine) is None:
         return float(terms[0] + terms[1])
     translational, rotational = _rank_sums(engine, terms)
@@ -83,14 +101,16 @@ def _owned_contacts(engine, c):
 def unbalanced_force_ratio(engine):
     """``mean |resultant force| / mean |contact force|`` (YADE ``unbalancedForce``).
 
-    The resultant is contacts + gravity of the last step over free particles; 0/0
-    (no contacts) returns 1.0 ("not in equilibrium"). A distributed engine takes the
-    means over all ranks (collective).
+    The resultant is contacts + gravity of the last step over free particles and over
+    clumps (not their members); 0/0 (no contacts) returns 1.0 ("not in equilibrium"). A
+    distributed engine takes the means over all ranks (collective).
     """
     p = engine.particles
-    mine = p.owned
+    mine = _free_spheres(engine)
     free = ~np.all(p.blocked[mine, :3] | p.prescribed[mine, :3], axis=1)
     resultant = np.linalg.norm(p.force[mine][free], axis=1)
+    if engine.clumps.count:
+        resultant = np.concatenate([resultant, np.linalg.norm(engine.clumps.force, axis=1)])
     c = engine.contacts()
     pairs, walls, facets = _owned_contacts(engine, c)
     forces = np.concatenate([np.linalg.norm(c["force"][pairs], axis=1), np.linalg.norm(c["wall_force"][walls], axis=1),
@@ -104,19 +124,26 @@ def unbalanced_force_ratio(engine):
 
 
 def coordination_number(engine, region=None, include_walls=False):
-    """Z = 2 N_c / N_p over particles (centres) in ``region`` (all if None).
+    """Z = 2 N_c / N_p over grains (centres; a clump's centre of mass) in ``region`` (all if None).
 
-    Sphere–sphere contacts count for both spheres; wall/facet contacts count once
+    Grain–grain contacts count for both grains; wall/facet contacts count once
     when ``include_walls``. A distributed engine counts over all ranks (collective).
     """
     p = engine.particles
     mine = p.owned
-    inside = np.ones(int(np.count_nonzero(mine)), bool) if region is None else region.contains(p.pos[mine])
     c = engine.contacts()
     counts = np.bincount(c["i"], minlength=p.n)[mine] + np.bincount(c["j"], minlength=p.n)[mine]
     if include_walls:
         counts = counts + np.bincount(c["wall_particle"], minlength=p.n)[mine] \
             + np.bincount(c["facet_particle"], minlength=p.n)[mine]
+    centres = p.pos[mine]
+    clumps = engine.clumps
+    if clumps.count:  # per grain: the free spheres, then the clumps (their members' contacts summed)
+        member_of = clumps.member_of[mine]
+        free = member_of < 0
+        counts = np.concatenate([counts[free], np.bincount(member_of[~free], counts[~free], clumps.count)])
+        centres = np.concatenate([centres[free], clumps.pos])
+    inside = np.ones(counts.size, bool) if region is None else region.contains(centres)
     contacts, particles = _rank_sums(engine, [counts[inside].sum(), inside.sum()])
     if particles == 0:
         return 0.0
@@ -158,30 +185,61 @@ def _sphere_sphere_volume(d, r, big_r):
 def solid_volume(engine, region):
     """Volume of the spheres' parts inside ``region`` (owned particles; a distributed
     engine sums over its ranks, collective)."""
-    return float(_rank_sums(engine, [_solid_volume(engine.particles, region)])[0])
+    return float(_rank_sums(engine, [_solid_volume(engine, region)])[0])
 
 
-def _solid_volume(p, region):
+def _solid_volume(engine, region):
+    p = engine.particles
     mine = p.owned
-    return spheres_solid_volume(p.pos[mine], p.radius[mine], region)
+    clumps = engine.clumps
+    if not clumps.count:
+        return spheres_solid_volume(p.pos[mine], p.radius[mine], region)
+    # members weighted by their clump's union volume over its members' summed volume (module docstring)
+    member_volume = 4.0 / 3.0 * np.pi * p.radius**3
+    member_of = clumps.member_of
+    union = clump_volumes(engine)
+    weight = np.ones(p.n)
+    members = member_of >= 0
+    weight[members] = (union / np.bincount(member_of[members], member_volume[members], clumps.count))[
+        member_of[members]]
+    return spheres_solid_volume(p.pos[mine], p.radius[mine], region, weight[mine])
 
 
-def spheres_solid_volume(pos, rad, region):
+def spheres_solid_volume(pos, rad, region, weight=None):
     """Volume of the parts of the spheres (centres ``pos``, radii ``rad``) inside ``region``:
-    whole spheres inside, quadrature for those cut by a box face, the exact lens for a sphere."""
+    whole spheres inside, quadrature for those cut by a box face, the exact lens for a sphere;
+    each sphere's part times its ``weight`` if given."""
     total = 0.0
+    w = np.ones(rad.size) if weight is None else weight
     if isinstance(region, SphereRegion):
         d = np.linalg.norm(pos - np.asarray(region.center, float), axis=1)
         for k in np.nonzero(d < rad + region.radius)[0]:
-            total += _sphere_sphere_volume(d[k], rad[k], region.radius)
+            total += _sphere_sphere_volume(d[k], rad[k], region.radius) * w[k]
         return float(total)
     lo, hi = np.asarray(region.lo, float), np.asarray(region.hi, float)
     inside = np.all((pos - rad[:, None] >= lo) & (pos + rad[:, None] <= hi), axis=1)
-    total += float(np.sum(4.0 / 3.0 * np.pi * rad[inside] ** 3))
+    total += float(np.sum(4.0 / 3.0 * np.pi * rad[inside] ** 3 * w[inside]))
     touching = np.all((pos + rad[:, None] > lo) & (pos - rad[:, None] < hi), axis=1) & ~inside
     for k in np.nonzero(touching)[0]:
-        total += _sphere_box_volume(pos[k], rad[k], lo, hi)
+        total += _sphere_box_volume(pos[k], rad[k], lo, hi) * w[k]
     return float(total)
+
+
+def clump_volumes(engine):
+    """The union volume of each clump, M / ρ (its members' material's density)."""
+    c = engine.clumps
+    first = c.member_index[c.member_start[:-1]]
+    return c.mass / np.array([engine.materials[k].density for k in engine.particles.material[first]])
+
+
+def grain_radii(engine):
+    """The equal-volume radius of every grain: the free spheres' radii in global-id order, then
+    the clumps' (collective when distributed)."""
+    radius = engine.global_particles().radius
+    if not engine.clumps.count:
+        return radius
+    free = radius[engine.clumps.member_of < 0]
+    return np.concatenate([free, (3.0 * clump_volumes(engine) / (4.0 * np.pi)) ** (1.0 / 3.0)])
 
 
 def porosity(engine, region):
@@ -198,24 +256,31 @@ def void_ratio(engine, region):
 def love_weber_stress(engine, region):
     """σ = 1/V Σ_c f_c ⊗ l_c over contacts whose contact point lies in ``region``.
 
-    Compression positive: sphere pairs f_c = force on j (= −force on i), l_c = x_j − x_i;
-    wall/facet contacts f_c = force on the wall, l_c = contact point − x_i. The
-    tensor is symmetrised only by equilibrium (returned as computed). A distributed
-    engine sums over its ranks (collective).
+    Compression positive: grain pairs f_c = force on j (= −force on i), l_c = x_j − x_i;
+    wall/facet contacts f_c = force on the wall, l_c = contact point − x_i, with x the
+    grain's centre (a clump's centre of mass for its members). The tensor is symmetrised
+    only by equilibrium (returned as computed). A distributed engine sums over its ranks
+    (collective).
     """
     p = engine.particles
     c = engine.contacts()
     pairs, walls, facets = _owned_contacts(engine, c)
     sigma = np.zeros((3, 3))
+    centre = p.pos
+    branch = c["branch"]
+    if engine.clumps.count:
+        member_of = engine.clumps.member_of
+        centre = np.where((member_of >= 0)[:, None], engine.clumps.pos[np.maximum(member_of, 0)], p.pos)
+        branch = centre[c["j"]] - centre[c["i"]]
     sel = region.contains(c["point"]) & pairs if len(c["i"]) else np.zeros(0, bool)
-    sigma += np.einsum("ci,cj->ij", -c["force"][sel], c["branch"][sel])
+    sigma += np.einsum("ci,cj->ij", -c["force"][sel], branch[sel])
     if len(c["wall_particle"]):
         sel = region.contains(c["wall_point"]) & walls
-        arm = c["wall_point"][sel] - p.pos[c["wall_particle"][sel]]
+        arm = c["wall_point"][sel] - centre[c["wall_particle"][sel]]
         sigma += np.einsum("ci,cj->ij", -c["wall_force"][sel], arm)
     if len(c["facet_particle"]):
         sel = region.contains(c["facet_point"]) & facets
-        arm = c["facet_point"][sel] - p.pos[c["facet_particle"][sel]]
+        arm = c["facet_point"][sel] - centre[c["facet_particle"][sel]]
         sigma += np.einsum("ci,cj->ij", -c["facet_force"][sel], arm)
     return _rank_sums(engine, sigma) / region.volume
 

@@ -64,7 +64,7 @@ from .contact_laws import (
     linear_normal_stiffness,
     released_energy,
 )
-from .integrate import IntegrationTerms, integrate_block, leapfrog_dof
+from .integrate import IntegrationTerms, integrate_block
 from .rigid import rotational_leapfrog, to_body, to_space
 from .state import (
     BOOK_ACCUMULATED,
@@ -340,6 +340,19 @@ def _particle_block(b, settings, particles, params, pairs, walls, meshes, candid
 
 
 @njit(cache=True, error_model="numpy")
+def _clump_dof(f, v, m, inv, dt, local_damping, viscous_damping):
+    """One DOF of a clump's centre: the leapfrog with background damping −α_v m v − α_b |F| sign(v̂ⁿ),
+    v̂ⁿ = v^{n−½} + ½ Δt F / m. Returns v^{n+½}, vⁿ and the damping's work."""
+    f_damp = -viscous_damping * m * v
+    v_est = v + 0.5 * dt * f * inv
+    if local_damping > 0.0 and v_est != 0.0:
+        f_damp -= local_damping * abs(f) * np.sign(v_est)
+    v_new = v + dt * (f + f_damp) * inv
+    v_mid = 0.5 * (v + v_new)
+    return v_new, v_mid, f_damp * v_mid * dt
+
+
+@njit(cache=True, error_model="numpy")
 def _damping_torque(t, w, big_l, local_damping, viscous_damping):
     """A clump's background damping torque on one space component: −α_v L − α_b |τ| sign(ω)
     (the spheres' −α_v I ω − α_b |τ| sign(ω), docs/design.md §2.13, with I ω = L)."""
@@ -424,8 +437,7 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
         for d in range(3):
             f = fx if d == 0 else (fy if d == 1 else fz)
             v = velocity[c, d]
-            v_new, v_mid, _, damped = leapfrog_dof(f, v, m, inv, dt, False, False, 0.0, local_damping,
-                                                    viscous_damping)
+            v_new, v_mid, damped = _clump_dof(f, v, m, inv, dt, local_damping, viscous_damping)
             ke_t += 0.5 * m * v_mid * v_mid
             potential -= m * gravity[d] * centre[c, d]
             damping -= damped
@@ -435,7 +447,10 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
         inertia = (moments[c, 0], moments[c, 1], moments[c, 2])
         lx = angmom[c, 0]; ly = angmom[c, 1]; lz = angmom[c, 2]
         bx, by, bz = to_body(q, lx, ly, lz)
-        wx, wy, wz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])  # ω^{n−½}
+        # ω at tⁿ, estimated from L^{n−½} + ½ Δt τ (the sign the local damping opposes; YADE's
+        # NewtonIntegrator does the same: with ω^{n−½} a clump's fast rotational mode is amplified)
+        bx, by, bz = to_body(q, lx + 0.5 * dt * tx, ly + 0.5 * dt * ty, lz + 0.5 * dt * tz)
+        wx, wy, wz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])
         dx = _damping_torque(tx, wx, lx, local_damping, viscous_damping)
         dy = _damping_torque(ty, wy, ly, local_damping, viscous_damping)
         dz = _damping_torque(tz, wz, lz, local_damping, viscous_damping)

@@ -81,7 +81,7 @@ def read_inputs(case, case_path):
     clumps = None
     if p.grains == "clumps":
         clumps = place_clumps(case, case_path)
-        positions, radii = clumps["centres"], clumps["scale"]
+        positions, radii = clumps.centres, clumps.scale
     elif p.source == "file":
         positions, radii = read_packing(case_path, "dem.particles.file", p.file)
     else:
@@ -107,25 +107,19 @@ def read_inputs(case, case_path):
 def place_clumps(case, case_path):
     """``count`` grains of the [[dem.clumps]] shapes (drawn by share), each scaled to an equal-volume
     radius drawn uniformly from ``radius``, at random non-overlapping places in ``box`` (their
-    enclosing spheres do not overlap) in random orientations (uniform unit quaternions)."""
+    enclosing spheres do not overlap) in random orientations (``de_domain.clumps.clump_cloud``)."""
     from cosim.case.validation import clump_templates
-    from de_domain.packing import random_cloud
+    from de_domain.clumps import clump_cloud
     p = case.dem.particles
     rng = np.random.default_rng(case.case.seed)
     templates = clump_templates(case_path, case.dem)
     share = np.array([t.share for t in case.dem.clumps])
     template_of = rng.choice(len(templates), size=p.count, p=share / share.sum())
     size = rng.uniform(p.radius[0], p.radius[1], p.count)
-    scale = size / np.array([t.equivalent_radius() for t in templates])[template_of]
-    enclosing = scale * np.array([t.reach() for t in templates])[template_of]
-    order = np.argsort(enclosing, kind="stable")[::-1]  # random_cloud places the largest first
     try:
-        centres, _ = random_cloud(enclosing[order], p.box[0], p.box[1], seed=case.case.seed)
+        return clump_cloud(templates, template_of, 2.0 * size, p.box[0], p.box[1], case.case.seed, rng)
     except ValueError as exc:
         raise CaseError(case_path, "dem.particles.count", p.count, f"{exc} (each grain's enclosing sphere)") from None
-    orientations = rng.normal(size=(p.count, 4))
-    return {"templates": templates, "template_of": template_of[order], "scale": scale[order], "centres": centres,
-            "orientations": orientations / np.linalg.norm(orientations, axis=1)[:, None]}
 
 
 def read_packing(case_path, key, name):
@@ -215,8 +209,8 @@ def _engine(case, built, extra_facets, comm=None):
     clumps = None
     if built.get("clumps") is not None:
         c = built["clumps"]
-        particles, clumps = Clumps.place(c["templates"], c["template_of"], c["centres"], c["orientations"], materials,
-                                         material_of=mat_ids, velocities=velocities, scales=c["scale"])
+        particles, clumps = Clumps.place(c.templates, c.template_of, c.centres, c.orientations, materials,
+                                         material_of=mat_ids, velocities=velocities, scales=c.scale)
     else:
         particles = Particles.from_spheres(built["positions"], built["radii"], mat_ids, materials,
                                            velocities=velocities)

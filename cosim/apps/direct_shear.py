@@ -51,7 +51,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from cosim.lab.run import LabTest, Loading, check_resume, run_lab_test
+from cosim.lab.run import LabTest, Loading, check_resume, grain_sizes, run_lab_test
 from cosim.outputs import is_root
 from cosim.specimen import SpecimenBox, check_grain_time_step, lab_specimen, read_lab_inputs
 
@@ -111,7 +111,6 @@ class ShearTest(LabTest):
         """``engine``: walls [bottom, top plate], facets [lower half, upper half] (see
         :meth:`build`); ``height``: specimen height before consolidation; ``x0``: the
         upper half's vertex x at zero shear (default: now)."""
-        from cosim.lab.shear_box import mass_median_diameter
         self.case = case
         ds = self.ds = case.direct_shear
         mats, sand, wall, plate = materials(case)
@@ -122,9 +121,7 @@ class ShearTest(LabTest):
         self.engine = engine
         self.bottom, self.plate = engine.walls
         self.lower, self.upper = engine.facets
-        radii = self.radii = engine.global_particles().radius  # every grain's, by global id (collective)
-        self.solid_volume = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
-        self.d50 = mass_median_diameter(radii)
+        self.radii, self.grain_radii, self.solid_volume, self.d50 = grain_sizes(engine)  # collective
         self.height0 = height
         self.x0 = self.upper.vertices[:, 0].copy() if x0 is None else np.asarray(x0, float)
         self.stiffness = 0.0
@@ -140,19 +137,20 @@ class ShearTest(LabTest):
         return ShearBoxGeometry(ds.box_length, height, lip_length=ds.shear_distance + 0.05 * ds.box_length)
 
     @classmethod
-    def build(cls, case, positions, radii, height, comm=None):
+    def build(cls, case, specimen, comm=None):
         """The specimen in the split box (module docstring, step 2); with ``comm``, the
         DEM spread over its ranks (collective)."""
-        from de_domain import Engine, FacetMesh, Particles, PlaneWall
+        from de_domain import Engine, FacetMesh, PlaneWall
         mats, sand, wall, plate = materials(case)
+        height = specimen.height
         geometry = cls.box_geometry(case, height)
-        particles = Particles.from_spheres(positions, radii, np.full(len(radii), sand, np.int32), mats)
+        particles, clumps = specimen.bodies(mats, sand)
         facets = [FacetMesh(*geometry.lower_half(), material=wall), FacetMesh(*geometry.upper_half(), material=wall)]
         walls = [PlaneWall((0, 0, 0), (0, 0, 1), material=plate), PlaneWall((0, 0, height), (0, 0, -1), material=plate)]
         dem = case.dem
         engine = Engine(particles, mats, walls=walls, facets=facets, contact_law=dem.contact_law, gravity=dem.gravity,
                         dt=case.time.dt, safety_factor=case.time.safety_factor, local_damping=dem.local_damping,
-                        viscous_damping=dem.viscous_damping, comm=comm)
+                        viscous_damping=dem.viscous_damping, comm=comm, clumps=clumps)
         return cls(case, engine, height)
 
     # ---------------------------------------------------------------- measurements
@@ -266,7 +264,8 @@ class ShearTest(LabTest):
     def describe(self, height):
         ds = self.ds
         return (f"shear box {ds.box_length * 1e3:.0f} x {ds.box_length * 1e3:.0f} mm, h = {height * 1e3:.2f} mm, "
-                f"{self.radii.size} grains (d50 = {self.d50 * 1e3:.2f} mm), dt = {self.engine.dt:.3e} s")
+                f"{self.grains_text()} (d50 = {self.d50 * 1e3:.2f} mm), "
+                f"dt = {self.engine.dt:.3e} s")
 
     def resumed_text(self):
         return f", δ = {self.displacement * 1e3:.3f} mm"

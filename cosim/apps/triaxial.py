@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.lab.run import LabTest, Loading, check_resume, run_lab_test
+from cosim.lab.run import LabTest, Loading, check_resume, grain_sizes, run_lab_test
 from cosim.outputs import is_root
 from cosim.specimen import SpecimenBox, check_grain_time_step, lab_specimen, read_lab_inputs
 
@@ -96,15 +96,12 @@ class TriaxialTest(LabTest):
     PHASE, STATE_FILE, COLUMNS, SAMPLED = "compression", STATE, COLUMNS, 3
 
     def __init__(self, case, engine):
-        from cosim.lab.shear_box import mass_median_diameter
         self.case, self.tx = case, case.triaxial
         mats, sand, wall, _ = materials(case)
         self.young_grain, self.young_wall = mats[sand].young, mats[wall].young
         self.density = mats[sand].density
         self.engine = engine
-        self.radii = engine.global_particles().radius  # collective when distributed
-        self.solid_volume = float(np.sum(4.0 / 3.0 * np.pi * self.radii ** 3))
-        self.d50 = mass_median_diameter(self.radii)
+        self.radii, self.grain_radii, self.solid_volume, self.d50 = grain_sizes(engine)  # collective
         self.rate = strain_rate_of(self.tx, self.d50, self.density)
         self.max_velocity = self.tx.servo_max_velocity or 2.0 * self.rate * self.tx.size
         self.stiffness = [0.0, 0.0, 0.0]
@@ -112,16 +109,17 @@ class TriaxialTest(LabTest):
         self.v_integral = [0.0, 0.0, 0.0]
 
     @classmethod
-    def build(cls, case, positions, radii, height, comm=None):
+    def build(cls, case, specimen, comm=None):
         from cosim.lab.cubical_box import box_walls
-        from de_domain import Engine, Particles
+        from de_domain import Engine
         mats, sand, wall, _ = materials(case)
         L = case.triaxial.size
-        particles = Particles.from_spheres(positions, radii, np.full(len(radii), sand, np.int32), mats)
+        particles, clumps = specimen.bodies(mats, sand)
         dem = case.dem
-        engine = Engine(particles, mats, walls=box_walls(L, L, height, wall), contact_law=dem.contact_law,
+        engine = Engine(particles, mats, walls=box_walls(L, L, specimen.height, wall), contact_law=dem.contact_law,
                         gravity=dem.gravity, dt=case.time.dt, safety_factor=case.time.safety_factor,
-                        local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
+                        local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm,
+                        clumps=clumps)
         return cls(case, engine)
 
     # ---------------------------------------------------------------- measurements
@@ -205,7 +203,7 @@ class TriaxialTest(LabTest):
 
     def describe(self, height):
         size = self.tx.size
-        return (f"cell {size * 1e3:.1f} x {size * 1e3:.1f} x {height * 1e3:.2f} mm, {self.radii.size} grains "
+        return (f"cell {size * 1e3:.1f} x {size * 1e3:.1f} x {height * 1e3:.2f} mm, {self.grains_text()} "
                 f"(d50 = {self.d50 * 1e3:.2f} mm), dt = {self.engine.dt:.3e} s")
 
     def start_state(self):

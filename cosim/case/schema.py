@@ -152,6 +152,11 @@ class SpecimenSection(Section):
     truncate_above: Optional[float] = Field(
         default=None, gt=0,
         description="drop the grains above this (scaled) diameter [m]")
+    grains: Literal["spheres", "clumps"] = Field(
+        default="spheres",
+        description="'spheres', or 'clumps' (direct_shear, triaxial): rigid grains of overlapping spheres shaped as "
+                    "the [[dem.clumps]] templates, drawn by share, each enlarged to its sieve diameter (equal volume), "
+                    "in random orientations; one process, no mpirun")
     void_ratio: float = Field(
         default=0.65, gt=0.3, lt=1.5,
         description="target void ratio e = V_voids/V_solids of the specimen [-]")

@@ -108,6 +108,7 @@ def check_consistency(path, case):
     uses, then the kind's own rules (:data:`CHECKS_OF_KIND`)."""
     _check_used(path, case)
     CHECKS_OF_KIND[case.case.kind](path, case)
+    _check_specimen_grains(path, case)
 
 
 def _require(path, case, *sections):
@@ -335,6 +336,36 @@ def _check_clumps(path, dem):
             raise CaseError(path, f"dem.clumps[{i}].members", dem.clumps[i].members,
                             f"a grain of this shape at the largest radius {p.radius[1]} m spans {span:.3g} m, "
                             f"not less than the box's smallest side {side:.3g} m")
+
+
+SPECIMEN_CLUMP_KINDS = ("direct_shear", "triaxial")  # kinds whose [specimen] may be of clumped grains
+
+
+def _check_specimen_grains(path, case):
+    """[specimen] grains = 'clumps' in a lab kind, with [[dem.clumps]] shapes whose largest grain fits
+    the box (a generated specimen: with source = 'file' the key is refused as unused, the file
+    says what its grains are); [[dem.clumps]] in a kind without [dem.particles] only with it."""
+    sp, dem, kind = case.specimen, case.dem, case.case.kind
+    clumped = sp is not None and sp.grains == "clumps"
+    if not clumped:
+        if dem is not None and dem.clumps and dem.particles is None:
+            raise CaseError(path, "dem.clumps", len(dem.clumps), "grain shapes need [specimen] grains = 'clumps'")
+        return
+    if kind not in SPECIMEN_CLUMP_KINDS:
+        raise CaseError(path, "specimen.grains", sp.grains, f"clumped grains are made for the kinds "
+                        f"{', '.join(SPECIMEN_CLUMP_KINDS)} (and 'dem' through [dem.particles]); a {kind} case "
+                        "uses spheres for now")
+    if not dem.clumps:
+        raise CaseError(path, "dem.clumps", None, "grains = 'clumps' need at least one [[dem.clumps]] grain shape")
+    side = case.direct_shear.sample_height if kind == "direct_shear" else case.triaxial.size
+    d_max = _largest_grain(path, sp)
+    for i, template in enumerate(clump_templates(path, dem)):
+        span = d_max * template.reach() / template.equivalent_radius()
+        if span >= 0.5 * side:
+            raise CaseError(path, f"dem.clumps[{i}].members", dem.clumps[i].members,
+                            f"a grain of this shape at the largest sieve size {d_max * 1e3:.3g} mm spans "
+                            f"{span * 1e3:.3g} mm, not less than half the specimen ({0.5e3 * side:.3g} mm); "
+                            "set specimen.truncate_above or a smaller scale")
 
 
 def _check_builds_its_run(path, case, lasts, time_keys, builds):

@@ -150,8 +150,8 @@ def constants(d_sigma, strain):
 def measure(case, case_path, mean_stress, strain, out_dir, size=None):
     """The whole test; writes ``elastic.json`` in ``out_dir`` and returns its dict."""
     from cosim.apps.dem import materials_of
-    from cosim.specimen import SpecimenBox, curve_of, make_specimen
-    from de_domain import Engine, Particles
+    from cosim.specimen import SpecimenBox, curve_of, grain_shapes, make_specimen
+    from de_domain import Engine
     mats, sand, wall, plate = materials_of(case.dem, *roles(case, case_path))
     if case.specimen.source != "generate":
         raise CaseError(case_path, "specimen.source", case.specimen.source,
@@ -163,17 +163,19 @@ def measure(case, case_path, mean_stress, strain, out_dir, size=None):
     log = lambda text: say(f"[{case.case.name} elastic] {text}")  # noqa: E731
     t0 = time.perf_counter()
     box = SpecimenBox(side, side, side, mats, sand, wall, plate)
-    pos, radii, height, info = make_specimen(case, box, curve, out_dir, label=f"{case.case.name} elastic")
+    specimen, info = make_specimen(case, box, curve, out_dir, label=f"{case.case.name} elastic",
+                                   shapes=grain_shapes(case, case_path))
     scale = case.specimen.density_scale
     scaled = [replace(m, density=m.density * scale) for m in mats]
-    grains = Particles.from_spheres(pos, radii, np.full(len(radii), sand, np.int32), scaled)
-    engine = Engine(grains, scaled, walls=box_walls(side, side, height, wall), contact_law=case.dem.contact_law,
-                    gravity=(0.0, 0.0, 0.0), safety_factor=case.time.safety_factor,
-                    local_damping=case.specimen.local_damping)
+    grains, clumps = specimen.bodies(scaled, sand)
+    engine = Engine(grains, scaled, walls=box_walls(side, side, specimen.height, wall),
+                    contact_law=case.dem.contact_law, gravity=(0.0, 0.0, 0.0), safety_factor=case.time.safety_factor,
+                    local_damping=case.specimen.local_damping, clumps=clumps)
     stiffness_guess = mats[sand].young  # M0 = k_n / d of a pair of equal grains (linear law k_n = 2 E r)
     steps, compressed = compress(engine, mean_stress, stiffness_guess, log, max_steps=2_000_000)
     before, loaded, unloaded = probe(engine, strain, log)
     lengths = box_lengths(engine)
+    radii = specimen.grain_radii()
     solid = float(np.sum(4.0 / 3.0 * math.pi * radii**3))
     result = {"mean_stress_Pa": mean_stress, "axial_strain": strain, "grains": int(len(radii)), "side_m": side,
               "void_ratio": float(np.prod(lengths) / solid - 1.0), "compression_steps": steps,

@@ -54,8 +54,9 @@ class Loading:
 
 
 class LabTest(ABC):
-    """One lab test as :func:`run_lab_test` drives it. A subclass sets ``engine``, ``radii``
-    and ``d50`` and the class constants below."""
+    """One lab test as :func:`run_lab_test` drives it. A subclass sets ``engine``, ``radii`` (every
+    sphere's, by particle id), ``grain_radii`` (every grain's equal-volume radius), ``d50`` and the
+    class constants below."""
 
     PHASE: str                   # the loading's name in the summary: steps_<PHASE>, wall_clock_<PHASE>_s
     STATE_FILE: str              # the checkpoint's loop and servo state (JSON, beside checkpoint.npz)
@@ -65,11 +66,11 @@ class LabTest(ABC):
     @classmethod
     @abstractmethod
     def specimen(cls, case, built, out_dir, cache=None, comm=None):
-        """(positions, radii, height, info) of the specimen in the test's box; collective."""
+        """(:class:`~de_domain.deposition.Specimen`, info) of the specimen in the test's box; collective."""
 
     @classmethod
     @abstractmethod
-    def build(cls, case, positions, radii, height, comm=None):
+    def build(cls, case, specimen, comm=None):
         """The test around a specimen; with ``comm``, the DEM spread over its ranks (collective)."""
 
     @classmethod
@@ -129,9 +130,25 @@ class LabTest(ABC):
     def summary_text(self, summary) -> str:
         """summary.txt."""
 
+    def grains_text(self) -> str:
+        """'N grains', or 'N clumped grains of M spheres'."""
+        if self.engine.clumps.count:
+            return f"{self.grain_radii.size} clumped grains of {self.radii.size} spheres"
+        return f"{self.grain_radii.size} grains"
+
     def resumed_text(self) -> str:
         """The log line's tail on a resume."""
         return ""
+
+
+def grain_sizes(engine):
+    """(every sphere's radius by particle id, every grain's equal-volume radius, the grains' solid
+    volume, their mass-median diameter d50) of a test's engine (collective when distributed)."""
+    from cosim.lab.shear_box import mass_median_diameter
+    from de_domain.diagnostics import grain_radii
+    radii = engine.global_particles().radius
+    grains = grain_radii(engine)
+    return radii, grains, float(np.sum(4.0 / 3.0 * np.pi * grains**3)), mass_median_diameter(grains)
 
 
 def check_resume(case_path, out_dir, test_class, what):
@@ -159,10 +176,10 @@ def _started(test_class, case, out_dir, built, specimen_cache, comm, log):
     """Steps 1 and 2 of the module docstring: (test, loop state) at the end of the consolidation."""
     if comm is not None:
         built = comm.bcast(built, root=0)  # prepare() read the inputs on rank 0
-    positions, radii, height, specimen_info = test_class.specimen(case, built, out_dir, specimen_cache, comm)
-    test = test_class.build(case, positions, radii, height, comm)
+    specimen, specimen_info = test_class.specimen(case, built, out_dir, specimen_cache, comm)
+    test = test_class.build(case, specimen, comm)
     ranks = f", DEM on {comm.size} MPI ranks" if comm is not None else ""
-    log(test.describe(height) + ranks)
+    log(test.describe(specimen.height) + ranks)
     t_consolidation = time.perf_counter()
     consolidation_steps = test.consolidate(log)
     loop = {"specimen_info": specimen_info, "consolidation_steps": consolidation_steps,
@@ -233,7 +250,8 @@ def _run(test_class, case, out_dir, built, specimen_cache, resume, comm):
     data = read_series(out_dir / "series.csv")
     summary = test.report(data, loop, out_dir)
     summary.update({
-        "case": name, "grains": int(test.radii.size), "d50": test.d50, "dt": engine.dt,
+        "case": name, "grains": int(test.grain_radii.size), "d50": test.d50, "dt": engine.dt,
+        **({"clumps": engine.clumps.count, "spheres": int(test.radii.size)} if engine.clumps.count else {}),
         "steps_consolidation": loop["consolidation_steps"],
         f"steps_{test.PHASE}": int(engine.step_count - loop["consolidation_steps"]),
         "void_ratio_consolidated": loop["e_consolidated"], "void_ratio_end": float(data["void_ratio"][-1]),

@@ -62,6 +62,19 @@ CLUMP_ROD = "members = [[-0.25, 0.0, 0.0, 0.5], [0.25, 0.0, 0.0, 0.5]]"
 
 CORPUS = [
     # ---------------------------------------------------------------- grains with shape (clumps)
+    Bad("shear", "grains = 'clumps' need at least one [[dem.clumps]] grain shape",
+        edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),), label="clumps: a clumped specimen with no shape"),
+    Bad("shear", "grain shapes need [specimen] grains = 'clumps'", append=f"\n[[dem.clumps]]\n{CLUMP_ROD}\n",
+        label="clumps: a shape for a specimen of spheres"),
+    Bad("triaxial", "not less than half the specimen",
+        edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),),
+        append="\n[[dem.clumps]]\nmembers = [" + ", ".join(f"[{0.9 * k:.1f}, 0.0, 0.0, 0.5]" for k in range(9)) + "]\n",
+        label="clumps: a nine-sphere rod (24 mm at the largest sieve size) longer than half the 40 mm cell"),
+    Bad("footing", "clumped grains are made for the kinds direct_shear, triaxial",
+        edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),), append=f"\n[[dem.clumps]]\n{CLUMP_ROD}\n"),
+    Bad("shear", "'specimen.grains' = 'clumps': not used here: source = 'file' takes the specimen", cut="[specimen]",
+        append=f'\n[specimen]\ngrains = "clumps"\nsource = "file"\nfile = "packings/sand_bed_30mm.npz"\n'
+               f"\n[[dem.clumps]]\n{CLUMP_ROD}\n", label="clumps: grains = 'clumps' with a packing file"),
     Bad("clumps", "dem.clumps", edit=((CLUMP_ROD, "members = []"),), label="clumps: a template with no members"),
     Bad("clumps", "member 1 of the clump template has radius 0.0",
         edit=((CLUMP_ROD, "members = [[-0.25, 0.0, 0.0, 0.5], [0.25, 0.0, 0.0, 0.0]]"),)),

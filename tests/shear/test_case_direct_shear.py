@@ -85,7 +85,7 @@ def test_the_grains_are_deposited_with_the_deposition_material(monkeypatch, tmp_
     from cosim.specimen import curve_of
     seen = {}
 
-    def generate(method, diameters, settings, log=None, comm=None):
+    def generate(method, diameters, settings, log=None, comm=None, shapes=None):
         seen["sand"] = settings.sand
         raise RuntimeError("stop here")
 
