@@ -83,7 +83,7 @@ print(f"specimen: {len(specimen.radii)} grains, h = {specimen.height * 1e3:.3f} 
 save_packing(out / "specimen.npz", specimen.positions, specimen.radii, **specimen.metadata())
 
 # 3. The shear box around the specimen; real densities from here on.
-test = ShearTest.build(case, specimen.positions, specimen.radii, specimen.height)
+test = ShearTest.build(case, specimen)
 engine = test.engine   # walls [bottom, top plate], facets [lower half, upper half]
 print(f"shear box: {engine.particles.n} grains, d50 = {test.d50 * 1e3:.2f} mm, dt = {engine.dt:.3e} s")
 
