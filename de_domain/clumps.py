@@ -293,6 +293,22 @@ class Clumps:
                      moments=moments, force=np.zeros((nc, 3)), torque=np.zeros((nc, 3)), sphere_mass=sphere_mass)
         return members, clumps
 
+    def critical_mass(self, radius):
+        """Each particle's mass for the critical time step (docs/design.md §2.19), given every
+        particle's ``radius``: a member's is the smaller of its mass as a sphere of its own and
+        I_min / (0.4 ρ² n) of its clump (I_min its smallest principal moment, ρ its reach from the
+        centre, n its members): a sphere's own mass for a one-member clump (I = 0.4 m r²), less for
+        a clump that a tangential force at its far end turns more easily, and whose members carry
+        more contacts together. Other particles: ``sphere_mass``."""
+        count = np.diff(self.member_start)
+        owner = np.repeat(np.arange(self.count), count)
+        reach = np.zeros(self.count)
+        np.maximum.at(reach, owner, np.linalg.norm(self.member_body, axis=1) + radius[self.member_index])
+        rotational = np.min(self.moments, axis=1) / (0.4 * reach**2 * count)
+        mass = self.sphere_mass.copy()
+        mass[self.member_index] = np.minimum(mass[self.member_index], rotational[owner])
+        return mass
+
     def arrays(self):
         """Every array, by name (for a checkpoint)."""
         return {name: getattr(self, name) for name in self.FIELDS}

@@ -608,12 +608,21 @@ def _motion(engine):
 
 def _critical_dt_all(s, diameters, shapes=None):
     """Δt_crit of the smallest grain (linear law, k = 2 E r) with scaled density; with
-    ``shapes``, of the smallest member sphere any grain can have."""
+    ``shapes``, of each template at the smallest diameter, its members by their clump's critical
+    mass (:meth:`de_domain.clumps.Clumps.critical_mass`)."""
     r = 0.5 * float(np.min(diameters))
-    if shapes is not None:
-        r *= shapes.smallest_member_fraction()
-    m = s.sand.density * s.density_scale * 4.0 / 3.0 * np.pi * r**3
-    return math.sqrt(m / (2.0 * s.sand.young * r))
+    density = s.sand.density * s.density_scale
+    if shapes is None:
+        m = density * 4.0 / 3.0 * np.pi * r**3
+        return math.sqrt(m / (2.0 * s.sand.young * r))
+    from .clumps import ClumpPacking
+    templates = shapes.templates
+    smallest = ClumpPacking(templates, np.arange(len(templates)),
+                            [r / t.equivalent_radius() for t in templates], np.zeros((len(templates), 3)),
+                            np.tile([1.0, 0.0, 0.0, 0.0], (len(templates), 1)))
+    particles, clumps = smallest.bodies([replace(s.sand, density=density)])
+    mass = clumps.critical_mass(particles.radius)
+    return float(np.min(np.sqrt(mass / (2.0 * s.sand.young * particles.radius))))
 
 
 def generate(method, diameters, settings, log=None, comm=None, shapes=None):

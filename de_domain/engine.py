@@ -274,9 +274,9 @@ class Engine:
         elif self.law == HERTZ:
             rho = self.density[p.material]
             local = float(np.min(p.radius * np.sqrt(rho / E)))
-        else:  # a clump's member as a sphere of its own (its particle mass is the clump's)
-            mass = np.where(self.clumps.member_of >= 0, self.clumps.sphere_mass, p.mass) if self.clumps.count \
-                else p.mass
+        else:  # a clump's member by its clump's critical mass (its particle mass is the clump's)
+            mass = np.where(self.clumps.member_of >= 0, self.clumps.critical_mass(p.radius), p.mass) \
+                if self.clumps.count else p.mass
             local = float(np.min(np.sqrt(mass / (2.0 * E * p.radius))))
         return self.runner.minimum(local)
 

@@ -1,5 +1,6 @@
 """A direct shear of clumped grains (``[specimen] grains = "clumps"``, docs/design.md §2.19): a
-miniature box of two-sphere grains made by under-compaction, end to end. The specimen file keeps
+miniature box of two-sphere grains made by radius expansion, end to end (under-compaction of
+clumps: test_specimen_recipe.py). The specimen file keeps
 the clumps, its void ratio counts each clump's union once, the consolidation comes to rest and
 the servo holds σ_n (the triaxial cell: tests/triaxial/test_triaxial_clumps.py)."""
 import json
@@ -26,7 +27,7 @@ def _run(folder, name, text):
 @pytest.fixture(scope="module")
 def shear(tmp_path_factory):
     text = SHEAR_MINI.format(name="ds_clumps", e=0.75, mu=0.3).replace(
-        "[specimen]\n", '[specimen]\ngrains = "clumps"\ntolerance = 0.02\n') + ROD
+        "[specimen]\n", '[specimen]\ngrains = "clumps"\nmethod = "radius_expansion"\n') + ROD
     return _run(tmp_path_factory.mktemp("ds_clumps"), "ds_clumps", text)
 
 

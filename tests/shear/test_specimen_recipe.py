@@ -1,4 +1,5 @@
-"""Specimen recipe without the engine: sieve curve, grain volume, layers (docs/design.md §3.1–§3.3)."""
+"""Specimen recipe: sieve curve, grain volume, layers (docs/design.md §3.1–§3.3), without the engine; and
+one small under-compaction of clumped grains."""
 import numpy as np
 import pytest
 
@@ -70,3 +71,28 @@ def test_layers_share_the_solid_volume_equally():
     assert sum(len(g) for g in groups) == len(d)
     vols = np.array([np.sum(g**3) for g in groups])
     np.testing.assert_allclose(vols / vols.mean(), 1.0, atol=0.01)
+
+
+def test_under_compaction_makes_a_specimen_of_clumps():
+    """Two layers of two-sphere grains (aspect ratio 1.25) in a 12 × 12 × 8 mm box: every grain
+    a clump of its sieve diameter (equal volume), inside the box, and the void ratio counted
+    from the clumps' union volumes."""
+    from de_domain import Material
+    from de_domain.clumps import ClumpTemplate
+    from de_domain.deposition import GenerationSettings, GrainShapes, generate
+    L, H, e = 0.012, 0.008, 0.8
+    curve = specimen_curve(None, [1.6e-3, 2.4e-3], [0.0, 1.0])
+    d = diameters_for_solid_volume(curve, solid_volume_for(e, L * L * H), np.random.default_rng(1))
+    settings = GenerationSettings(box_length=L, height=H, void_ratio=e, sand=Material(young=5e7, friction=0.3),
+                                  wall=Material(young=5e7, friction=0.0), plate=Material(young=5e7, friction=0.5),
+                                  layers=2, seed=3)
+    specimen = generate("under_compaction", d, settings, shapes=GrainShapes([ClumpTemplate.line(2, 1.25)], (1.0,)))
+    clumps = specimen.clumps
+    assert clumps.count == d.size and specimen.radii.size == 2 * d.size
+    np.testing.assert_allclose(np.sort(2 * clumps.equivalent_radii()), np.sort(d), rtol=1e-9)
+    solid = float(np.sum(clumps.volumes()))
+    assert specimen.void_ratio == pytest.approx((L * L * specimen.height - solid) / solid, rel=1e-12)
+    slack = 0.25 * specimen.radii[:, None]  # elastic overlap with the walls
+    pos, r = specimen.positions, specimen.radii[:, None]
+    assert np.all(pos - r > -slack) and np.all(pos[:, :2] + r < L + slack)
+    assert np.all(pos[:, 2:] + r < specimen.height + slack)
