@@ -7,7 +7,8 @@ same materials and the same generation protocol: the case's dense one, under-com
 e = 0.65 with deposition friction 0.05 (a shape that cannot reach it ends looser, and its
 consolidated void ratio is reported beside its angles).
 
-Runs each (shape, seed) unless its summary exists (about 1–3 minutes a run on 2 cores), then
+Runs each (shape, seed) unless its summary exists (on 2 cores about 1 minute a run of
+spheres and 4–8 of clumps: clumps take a smaller time step and generate slower), then
 writes ``runs/out/shape_effect/table.md`` (per run and the mean ± standard deviation per shape)
 and the plot ``docs/shape_effect.png`` (φ_peak and φ_cs against aspect ratio, every packing a
 dot, the means joined).
