@@ -142,7 +142,8 @@ def read_lab_inputs(case, case_path, length, width):
     """What a lab test reads before computing (its ``prepare``): the packing file, whose grains
     must lie in the ``length`` × ``width`` box (overlapping a side by at most 25 % of a radius),
     or the sieve curve (and the clumped grains' shapes). Returns (built dict, the smallest
-    sphere's radius: a clump's smallest member); bad input is a CaseError naming the key."""
+    grain's radius: a sieve curve's equal-volume one, a file's smallest sphere); bad input is a
+    CaseError naming the key."""
     from cosim.case.paths import resolve_path
     from cosim.errors import CaseError
     sp = case.specimen
@@ -154,8 +155,7 @@ def read_lab_inputs(case, case_path, length, width):
         except ValueError as exc:
             raise CaseError(case_path, "specimen", "sieve curve", str(exc)) from None
         shapes = grain_shapes(case, case_path)
-        r_min = 0.5 * float(curve.diameters[0]) * (shapes.smallest_member_fraction() if shapes else 1.0)
-        return {"curve": curve, "shapes": shapes}, r_min
+        return {"curve": curve, "shapes": shapes}, 0.5 * float(curve.diameters[0])
     from cosim.apps.dem import warn_overlaps
     try:
         packing = read_specimen(resolve_path(case_path, sp.file))
@@ -182,14 +182,20 @@ def _one_process(case_path, key, value):
                         "NUMBA_NUM_THREADS); run without mpirun")
 
 
-def check_grain_time_step(case, case_path, mats, sand, radius):
-    """A given ``time.dt`` against the critical step of the smallest grain (docs/design.md §2.14)."""
+def check_grain_time_step(case, case_path, mats, sand, radius, shapes=None):
+    """A given ``time.dt`` against the critical step of the smallest grain of ``radius``
+    (docs/design.md §2.14); with ``shapes``, of each clumped grain of that equal-volume radius
+    (its members by their clump's critical mass)."""
     if case.time.dt is None:
         return
     from cosim.apps.dem import check_time_step
     from de_domain import Engine, Particles
-    grain = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats)
-    check_time_step(case_path, case.time, Engine(grain, mats, contact_law=case.dem.contact_law, dt=case.time.dt))
+    if shapes is None:
+        grains, clumps = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats), None
+    else:
+        grains, clumps = shapes.at_diameter(2.0 * radius).bodies(mats, sand)
+    check_time_step(case_path, case.time, Engine(grains, mats, contact_law=case.dem.contact_law, dt=case.time.dt,
+                                                 clumps=clumps))
 
 
 def lab_specimen(case, built, box: SpecimenBox, out_dir, cache=None, comm=None):

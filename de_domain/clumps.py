@@ -358,10 +358,6 @@ class ClumpPacking:
         """The radius of each clump's smallest enclosing sphere about its centre (nc,)."""
         return np.array([t.reach() for t in self.templates])[self.template_of] * self.scale
 
-    def smallest_member_radius(self):
-        """The smallest member sphere of any clump (its critical time step is the packing's)."""
-        return float(np.min(np.array([t.radii.min() for t in self.templates])[self.template_of] * self.scale))
-
     def bodies(self, materials, material=0, size=1.0):
         """(particles, clumps) for an Engine (:meth:`Clumps.place`), every clump of ``material`` and
         enlarged a further ``size`` times about its centre."""

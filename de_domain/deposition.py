@@ -292,9 +292,15 @@ class GrainShapes:
         share = np.asarray(self.shares, float)
         return rng.choice(len(self.templates), size=count, p=share / share.sum())
 
-    def smallest_member_fraction(self):
-        """min over templates of (smallest member radius / equal-volume radius)."""
-        return min(float(t.radii.min()) / t.equivalent_radius() for t in self.templates)
+    def at_diameter(self, diameter):
+        """One grain of each template at the equal-volume ``diameter``, apart from each other
+        (the grains that set the critical time step at the smallest sieve size)."""
+        from .clumps import ClumpPacking
+        n = len(self.templates)
+        scale = np.array([0.5 * diameter / t.equivalent_radius() for t in self.templates])
+        spacing = 4.0 * float(np.max(scale * self.reach_ratios())) * 0.5 * diameter
+        centres = np.column_stack([spacing * np.arange(n), np.zeros(n), np.zeros(n)])
+        return ClumpPacking(self.templates, np.arange(n), scale, centres, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)))
 
     def reach_ratios(self):
         """Each template's enclosing radius over its equal-volume radius (≥ 1)."""
@@ -615,12 +621,7 @@ def _critical_dt_all(s, diameters, shapes=None):
     if shapes is None:
         m = density * 4.0 / 3.0 * np.pi * r**3
         return math.sqrt(m / (2.0 * s.sand.young * r))
-    from .clumps import ClumpPacking
-    templates = shapes.templates
-    smallest = ClumpPacking(templates, np.arange(len(templates)),
-                            [r / t.equivalent_radius() for t in templates], np.zeros((len(templates), 3)),
-                            np.tile([1.0, 0.0, 0.0, 0.0], (len(templates), 1)))
-    particles, clumps = smallest.bodies([replace(s.sand, density=density)])
+    particles, clumps = shapes.at_diameter(2.0 * r).bodies([replace(s.sand, density=density)])
     mass = clumps.critical_mass(particles.radius)
     return float(np.min(np.sqrt(mass / (2.0 * s.sand.young * particles.radius))))
 
