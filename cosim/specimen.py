@@ -147,8 +147,6 @@ def read_lab_inputs(case, case_path, length, width):
     from cosim.case.paths import resolve_path
     from cosim.errors import CaseError
     sp = case.specimen
-    if sp.grains == "clumps":
-        _one_process(case_path, "specimen.grains", sp.grains)
     if sp.source == "generate":
         try:
             curve = curve_of(sp)
@@ -161,8 +159,6 @@ def read_lab_inputs(case, case_path, length, width):
         packing = read_specimen(resolve_path(case_path, sp.file))
     except Exception as exc:
         raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
-    if packing.clumps is not None:
-        _one_process(case_path, "specimen.file", sp.file)
     pos, radii = packing.positions, packing.radii
     slack = 0.25 * radii[:, None]  # elastic overlap with the side walls of the box it was made in
     if np.any(pos[:, :2] - radii[:, None] < -slack) or np.any(pos[:, :2] + radii[:, None] > (length, width) + slack):
@@ -171,15 +167,6 @@ def read_lab_inputs(case, case_path, length, width):
     if packing.clumps is None:  # a clump's members overlap by design
         warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
     return {"packing": packing}, float(radii.min())
-
-
-def _one_process(case_path, key, value):
-    """Clumped grains run on one process (de_domain.Engine); under ``mpirun -n N`` a CaseError."""
-    from cosim.errors import CaseError
-    from cosim.outputs import mpi_comm
-    if mpi_comm().size > 1:
-        raise CaseError(case_path, key, value, "clumped grains run on one process for now (its cores through "
-                        "NUMBA_NUM_THREADS); run without mpirun")
 
 
 def check_grain_time_step(case, case_path, mats, sand, radius, shapes=None):

@@ -70,7 +70,28 @@ def _rank_sums(engine, values):
 def _free_spheres(engine):
     """Mask of the owned particles that are free spheres, not members of a clump."""
     p = engine.particles
-    return p.owned & (engine.clumps.member_of < 0) if engine.clumps.count else p.owned
+    return p.owned & (engine.clump_rows()[0] < 0) if engine.clumps.count else p.owned
+
+
+def _clumps_here(engine):
+    """Does this process count the clumps' own terms (the root of a distributed engine: every
+    rank holds every clump)?"""
+    return engine.runner.is_root
+
+
+def _member_values(engine, values):
+    """``values`` (one per particle row) of each clump member, in template order (collective when
+    distributed: each member's from the rank owning it, the others adding zeros: exact)."""
+    _, member_row = engine.clump_rows()
+    held = member_row >= 0
+    out = np.zeros(member_row.size)
+    out[held] = values[member_row[held]]
+    return out if _domain(engine) is None else _rank_sums(engine, out)
+
+
+def _clump_of_members(clumps):
+    """The clump of each member, in template order."""
+    return np.repeat(np.arange(clumps.count), np.diff(clumps.member_start))
 
 
 def kinetic_energy(engine):
@@ -81,7 +102,7 @@ def kinetic_energy(engine):
     terms = (0.5 * np.sum(p.mass[mine] * np.sum(p.vel[mine] ** 2, axis=1)),
              0.5 * np.sum(p.inertia[mine] * np.sum(p.angvel[mine] ** 2, axis=1)))
     c = engine.clumps
-    if c.count:
+    if c.count and _clumps_here(engine):
         terms = (terms[0] + 0.5 * np.sum(c.mass * np.sum(c.vel**2, axis=1)),
                  terms[1] + 0.5 * np.sum(c.angular_velocity() * c.angmom))
     if _domain(engine) is None:
@@ -109,7 +130,7 @@ def unbalanced_force_ratio(engine):
     mine = _free_spheres(engine)
     free = ~np.all(p.blocked[mine, :3] | p.prescribed[mine, :3], axis=1)
     resultant = np.linalg.norm(p.force[mine][free], axis=1)
-    if engine.clumps.count:
+    if engine.clumps.count and _clumps_here(engine):
         resultant = np.concatenate([resultant, np.linalg.norm(engine.clumps.force, axis=1)])
     c = engine.contacts()
     pairs, walls, facets = _owned_contacts(engine, c)
@@ -139,10 +160,15 @@ def coordination_number(engine, region=None, include_walls=False):
     centres = p.pos[mine]
     clumps = engine.clumps
     if clumps.count:  # per grain: the free spheres, then the clumps (their members' contacts summed)
-        member_of = clumps.member_of[mine]
-        free = member_of < 0
-        counts = np.concatenate([counts[free], np.bincount(member_of[~free], counts[~free], clumps.count)])
-        centres = np.concatenate([centres[free], clumps.pos])
+        every = np.zeros(p.n)
+        every[mine] = counts
+        per_clump = np.bincount(_clump_of_members(clumps), _member_values(engine, every), clumps.count)
+        free = _free_spheres(engine)[mine]
+        if _clumps_here(engine):
+            counts = np.concatenate([counts[free], per_clump])
+            centres = np.concatenate([centres[free], clumps.pos])
+        else:
+            counts, centres = counts[free], centres[free]
     inside = np.ones(counts.size, bool) if region is None else region.contains(centres)
     contacts, particles = _rank_sums(engine, [counts[inside].sum(), inside.sum()])
     if particles == 0:
@@ -195,13 +221,12 @@ def _solid_volume(engine, region):
     if not clumps.count:
         return spheres_solid_volume(p.pos[mine], p.radius[mine], region)
     # members weighted by their clump's union volume over its members' summed volume (module docstring)
-    member_volume = 4.0 / 3.0 * np.pi * p.radius**3
-    member_of = clumps.member_of
-    union = clump_volumes(engine)
+    member_volume = _member_values(engine, 4.0 / 3.0 * np.pi * p.radius**3)
+    ratio = clump_volumes(engine) / np.bincount(_clump_of_members(clumps), member_volume, clumps.count)
+    member_of = engine.clump_rows()[0]
     weight = np.ones(p.n)
     members = member_of >= 0
-    weight[members] = (union / np.bincount(member_of[members], member_volume[members], clumps.count))[
-        member_of[members]]
+    weight[members] = ratio[member_of[members]]
     return spheres_solid_volume(p.pos[mine], p.radius[mine], region, weight[mine])
 
 
@@ -228,8 +253,8 @@ def spheres_solid_volume(pos, rad, region, weight=None):
 def clump_volumes(engine):
     """The union volume of each clump, M / ρ (its members' material's density)."""
     c = engine.clumps
-    first = c.member_index[c.member_start[:-1]]
-    return c.mass / np.array([engine.materials[k].density for k in engine.particles.material[first]])
+    material = _member_values(engine, engine.particles.material.astype(np.float64))[c.member_start[:-1]]
+    return c.mass / np.array([engine.materials[int(k)].density for k in material])
 
 
 def grain_radii(engine):
@@ -269,7 +294,7 @@ def love_weber_stress(engine, region):
     centre = p.pos
     branch = c["branch"]
     if engine.clumps.count:
-        member_of = engine.clumps.member_of
+        member_of = engine.clump_rows()[0]
         centre = np.where((member_of >= 0)[:, None], engine.clumps.pos[np.maximum(member_of, 0)], p.pos)
         branch = centre[c["j"]] - centre[c["i"]]
     sel = region.contains(c["point"]) & pairs if len(c["i"]) else np.zeros(0, bool)

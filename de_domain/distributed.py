@@ -36,7 +36,7 @@ from .comm import GhostExchange, RowGather, concatenate_records, exchange_record
 from .decomposition import SlabDecomposition, balanced_cuts, needs_rebalance, spread_axis
 from .neighbors import MAX_SPREAD, ContactRecords, record_keys
 from .particles import ARRAY_FIELDS
-from .state import BOOK_INITIALISED
+from .state import BOOK_INITIALISED, MEMBER_COLUMNS
 
 ID_MASK = (1 << 32) - 1
 
@@ -52,9 +52,19 @@ class Domain:
         self.ids = np.empty(0, np.int64)
         self.exchange = None
         self.facet_contacts = RowGather(comm, 8)  # (global id, triangle, λ, F) of each facet contact
+        self.member_loads = RowGather(comm, 1 + MEMBER_COLUMNS)  # (member slot, load) of each owned clump member
         self._flag = np.zeros(1, np.int32)
         self.migrated = 0  # particles this rank sent away, all rebuilds
         self.rebuilds = 0
+
+    def share_member_loads(self, clumps):
+        """Every clump member's load (``clumps.member_load``, :data:`~de_domain.state.ClumpArrays`)
+        on every rank: each rank's rows of the members it owns (``member_row`` ≥ 0), gathered
+        (collective). A member has one owner: each row arrives once, with its owner's bits."""
+        local = self.member_loads.local_rows(clumps.member_row.size)
+        count = _owned_member_loads(clumps.member_row, clumps.member_load, local)
+        rows, _, _ = self.member_loads.gather(count)
+        _place_member_loads(rows, clumps.member_load)
 
     def any_rank(self, flag):
         """Is ``flag`` true on any rank (collective, through a kept buffer)?"""
@@ -105,6 +115,28 @@ class DistributedRun:
 
     def contact_records(self, engine):
         return gather_records(engine)
+
+
+@njit(cache=True)
+def _owned_member_loads(member_row, member_load, rows):
+    """Rows (member slot, load) of the members this rank owns, into ``rows``; returns their count."""
+    n = 0
+    for k in range(member_row.size):
+        if member_row[k] >= 0:
+            rows[n, 0] = k
+            for d in range(member_load.shape[1]):
+                rows[n, 1 + d] = member_load[k, d]
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _place_member_loads(rows, member_load):
+    """Each gathered row's load into its member's slot of ``member_load``."""
+    for r in range(rows.shape[0]):
+        k = int(rows[r, 0])
+        for d in range(member_load.shape[1]):
+            member_load[k, d] = rows[r, 1 + d]
 
 
 def distribute(engine, particles, comm):
@@ -273,7 +305,7 @@ def run(engine, nsteps):
         if due if agreed else domain.any_rank(due):
             engine.write_back()
             rebuild(engine)
-        copies, due = engine.step_on_copies(boundaries)
+        copies, due = engine.step_on_copies(boundaries, domain.share_member_loads)
         domain.exchange.exchange(copies)
         if engine.facets:  # the flag rides with the facet contacts' gather
             due, agreed = facet_vertex_forces(engine, due), True

@@ -39,6 +39,7 @@ from .state import (
     CLOCK_PARTICLE_SHIFT,
     CLOCK_STEPS,
     CLOCK_TIME,
+    MEMBER_COLUMNS,
     N_BOOKS,
     N_CLOCK,
     ClumpArrays,
@@ -114,6 +115,7 @@ class Engine:
         self._copies_hold_state = False  # the sorted copies, not the public arrays, are current
         self.keep_sorted = False
         self.runner = SerialRun()
+        self.domain = None  # de_domain.distributed.Domain with ``comm``
         #: distributed: gather the wall forces over the ranks after every run (False: only in
         #: update_wall_forces, checkpoints, and before a wall moved from outside is booked)
         self.wall_forces_each_run = True
@@ -123,10 +125,8 @@ class Engine:
         if clumps is not None and clumps.member_of.size != particles.n:
             raise ValueError(f"Engine: the clumps are over {clumps.member_of.size} particles, the engine has "
                              f"{particles.n}")
-        if clumps is not None and clumps.count and comm is not None:
-            raise ValueError("Engine: clumps are not yet distributed over MPI ranks; run them on one rank "
-                             "(threads: NUMBA_NUM_THREADS)")
-        #: rigid clumps of member spheres (de_domain.clumps.Clumps; none by default)
+        #: rigid clumps of member spheres (de_domain.clumps.Clumps; none by default): all of them, over
+        #: the global particle ids, on every rank of a distributed engine (each advances every clump)
         self.clumps = clumps if clumps is not None else Clumps.none(particles.n)
         self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
         n_mat = len(self.materials)
@@ -164,6 +164,11 @@ class Engine:
         self._identity_perm = np.zeros(0, np.int32)  # perm of the sorted copies: 0, 1, ..., n − 1
         self._free_member_of = np.zeros(0, np.int32)  # −1 per particle: no clump
         self._sorted_clump_rows = None  # the clumps' member_of and member rows in the spatial order
+        self._member_load = np.zeros((0, MEMBER_COLUMNS))  # ClumpArrays.member_load
+        self._step_buffers = None  # fused.step_buffers of a distributed step with clumps
+        self._forces_kernel = CachedEntry(fused.step_forces)
+        self._collect_kernel = CachedEntry(fused.collect_member_loads)
+        self._finish_kernel = CachedEntry(fused.finish_step)
         self._sorted = None  # buffers of the spatially sorted copies (_sorted_copies)
         self._advance_kernel = CachedEntry(fused.advance)  # fused.advance without per-call typing
         self._wall_totals = CachedEntry(fused.wall_totals)
@@ -171,7 +176,6 @@ class Engine:
         self.acceleration = np.zeros((n, 3))
         self._allocate_pair_arrays(0)
         self._energy_reset()
-        self.domain = None
         self._pending_records = None  # contact history from a checkpoint, for the first list build
         if comm is not None:
             _distributed().distribute(self, particles, comm)
@@ -188,6 +192,27 @@ class Engine:
     def particles(self, value: Particles):
         self._copies_hold_state = False
         self._particles = value
+        self._clump_rows = None  # made again for the new rows (clump_rows)
+
+    def clump_rows(self):
+        """(member_of, member_row) over this process's particle rows: the clump of each row
+        (−1: a free sphere), and the row of each member of the clumps (template order; −1 where
+        another rank owns it). A serial engine's are the clumps' own ``member_of`` and
+        ``member_index``."""
+        if self._clump_rows is None:
+            c = self.clumps
+            if self.domain is None:
+                self._clump_rows = (c.member_of, c.member_index)
+            else:
+                ids = self.domain.ids
+                member_of = c.member_of[ids]
+                slot = np.full(c.member_of.size, -1, np.int64)
+                slot[c.member_index] = np.arange(c.member_index.size)
+                member_row = np.full(c.member_index.size, -1, np.int64)
+                owned = np.flatnonzero(self._particles.owned & (member_of >= 0))
+                member_row[slot[ids[owned]]] = owned
+                self._clump_rows = (member_of, member_row)
+        return self._clump_rows
 
     @property
     def acceleration(self) -> np.ndarray:
@@ -274,10 +299,14 @@ class Engine:
         elif self.law == HERTZ:
             rho = self.density[p.material]
             local = float(np.min(p.radius * np.sqrt(rho / E)))
-        else:  # a clump's member by its clump's critical mass (its particle mass is the clump's)
-            mass = np.where(self.clumps.member_of >= 0, self.clumps.critical_mass(p.radius), p.mass) \
-                if self.clumps.count else p.mass
+        elif self.clumps.count:  # a member by its clump's critical mass, from every particle's radius
+            radius = p.radius if self.domain is None else self.global_particles().radius
+            critical = self.clumps.critical_mass(radius)
+            member_of, _ = self.clump_rows()
+            mass = np.where(member_of >= 0, critical if self.domain is None else critical[self.domain.ids], p.mass)
             local = float(np.min(np.sqrt(mass / (2.0 * E * p.radius))))
+        else:
+            local = float(np.min(np.sqrt(p.mass / (2.0 * E * p.radius))))
         return self.runner.minimum(local)
 
     # ------------------------------------------------------------------ the step
@@ -376,7 +405,7 @@ class Engine:
             if refresh or nl.perm is None:
                 nl.perm_step = self.step_count
             nl.build(p.pos, p.radius, p.n, vertices, self._triangles, wp, wn, ghost=p.ghost,
-                     carried=self.take_pending_records(), new_order=refresh, body=self.clumps.member_of)
+                     carried=self.take_pending_records(), new_order=refresh, body=self.clump_rows()[0])
             self._allocate_pair_arrays(nl.pair_js.size)
 
     def install_rows(self, rows, ghost, ids, carried):
@@ -390,7 +419,7 @@ class Engine:
         boundaries = self.boundaries()
         wall_point, wall_normal, _, _ = boundaries.walls
         self.neighbors.build(p.pos, p.radius, p.n, boundaries.facets[0], self._triangles, wall_point, wall_normal,
-                             ghost=ghost, ids=ids, carried=carried, new_order=True)
+                             ghost=ghost, ids=ids, carried=carried, new_order=True, body=self.clump_rows()[0])
         self._allocate_pair_arrays(self.neighbors.pair_js.size)
 
     def take_pending_records(self):
@@ -476,17 +505,23 @@ class Engine:
             if self._free_member_of.size != self._particles.n:
                 self._free_member_of = np.full(self._particles.n, -1, np.int32)
             member_of, member_row = self._free_member_of, c.member_index
-        elif in_order:  # into buffers kept by the engine: the kernel's cached entry needs the same arrays
-            if self._sorted_clump_rows is None or self._sorted_clump_rows[0].size != c.member_of.size:
-                self._sorted_clump_rows = (np.empty_like(c.member_of), np.empty_like(c.member_index))
-            member_of, member_row = self._sorted_clump_rows
-            np.take(c.member_of, self.neighbors.perm, out=member_of)
-            member_row[:] = self.neighbors.iperm[c.member_index]
         else:
-            member_of, member_row = c.member_of, c.member_index
+            member_of, member_row = self.clump_rows()
+            if in_order:  # into buffers kept by the engine: the kernel's cached entry needs the same arrays
+                if self._sorted_clump_rows is None or self._sorted_clump_rows[0].size != member_of.size:
+                    self._sorted_clump_rows = (np.empty_like(member_of), np.empty_like(member_row))
+                sorted_of, sorted_row = self._sorted_clump_rows
+                np.take(member_of, self.neighbors.perm, out=sorted_of)
+                held = member_row >= 0
+                sorted_row[:] = -1
+                sorted_row[held] = self.neighbors.iperm[member_row[held]]
+                member_of, member_row = sorted_of, sorted_row
+        if self._member_load.shape[0] != c.member_index.size:
+            self._member_load = np.zeros((c.member_index.size, MEMBER_COLUMNS))
         return ClumpArrays(member_of=member_of, pos=c.pos, vel=c.vel, quat=c.quat, angmom=c.angmom, mass=c.mass,
                            moments=c.moments, member_start=c.member_start, member_row=member_row,
-                           member_body=c.member_body, force=c.force, torque=c.torque)
+                           member_body=c.member_body, force=c.force, torque=c.torque, member_load=self._member_load,
+                           books_terms=self.runner.is_root)
 
     def _public_arrays(self):
         """The particle arrays in the public order, as the kernels take them."""
@@ -569,19 +604,34 @@ class Engine:
             self._copies_hold_state = False
             fused.scatter_in_order(self.neighbors.perm, self._sorted, self._public_arrays())
 
-    def step_on_copies(self, boundaries):
+    def step_on_copies(self, boundaries, share_member_loads):
         """One step of a distributed run on this rank's spatially sorted copies (gathered
         first if they do not hold the state; the facet vertex forces and impulses are summed
         over the ranks afterwards, by the caller: :meth:`set_facet_vertex_forces`), with the
-        arrays of :meth:`boundaries` (advanced in place). Returns the copies (the caller
-        exchanges their ghost rows) and whether this rank's particles, walls or vertices call
-        for a list rebuild."""
+        arrays of :meth:`boundaries` (advanced in place). With clumps, the step stops after the
+        contacts for ``share_member_loads(clumps)``, which fills the ``member_load`` rows of the
+        members other ranks own (:data:`~de_domain.state.ClumpArrays`). Returns the copies (the
+        caller exchanges their ghost rows) and whether this rank's particles, walls or vertices
+        call for a list rebuild."""
         copies = self._sorted_copies()
         walls = boundaries.walls
         clock = self._clock_at_start()
         vertices, vertex_vel = boundaries.facets
         facet_state = (vertices, vertex_vel, self._facet_impulse)  # this rank's impulse: not used
-        due = self._advance_kernel(1, *self._kernel_state(walls, facet_state, copies), self._books, clock)
+        state = self._kernel_state(walls, facet_state, copies)
+        if not self.clumps.count:
+            due = self._advance_kernel(1, *state, self._books, clock)
+        else:
+            settings, particles, params, pairs, plane_walls, meshes, candidates, clumps = state
+            n = particles.pos.shape[0]
+            buffers = self._step_buffers
+            if buffers is None or buffers.shift.size != (n + fused.PBLOCK - 1) // fused.PBLOCK:
+                buffers = self._step_buffers = fused.step_buffers(n, clumps.mass.size)
+            self._forces_kernel(*state, buffers)
+            self._collect_kernel(particles, clumps)
+            share_member_loads(clumps)
+            due = self._finish_kernel(settings, particles, plane_walls, meshes, candidates, clumps, buffers,
+                                      self._books, clock)
         self.time = float(clock[CLOCK_TIME])
         self.step_count += 1
         self._wall_points_known[:] = walls[0]
@@ -744,7 +794,7 @@ class Engine:
         return np.sort(self.runner.concatenate(ids))
 
     def memory_bytes(self):
-        """nbytes of every per-particle and per-contact array the engine holds, by name."""
+        """nbytes of every per-particle, per-contact and per-clump array the engine holds, by name."""
         out = {f"particles.{k}": v.nbytes for k, v in self.particles.arrays().items()}
         out["acceleration"] = self.acceleration.nbytes
         for k in ("j_rec", "pair_ov", "facet_force", "facet_lambda", "facet_active"):
@@ -757,6 +807,9 @@ class Engine:
                 per += 6 + 6 + 48
             out["run.sorted_copies"] = per * p.n
         out["particles.ghost"] = p.ghost.nbytes
+        if self.clumps.count:  # every clump on every rank, and the members' loads of a step
+            out.update({f"clumps.{k}": v.nbytes for k, v in self.clumps.arrays().items()})
+            out["clumps.member_load"] = self._member_load.nbytes
         if self.domain is not None:
             out["domain.ids"] = self.domain.ids.nbytes
             if self.domain.exchange is not None:

@@ -86,6 +86,9 @@ from .state import (
     I_GRAVITY,
     I_KINETIC_ROTATIONAL,
     I_KINETIC_TRANSLATIONAL,
+    MEMBER_FORCE,
+    MEMBER_POSITION,
+    MEMBER_TORQUE,
     N_CONTACT_ENERGY,
     N_INTEGRATION,
     N_RATE,
@@ -93,6 +96,7 @@ from .state import (
     N_WALL_ENERGY,
     W_CONTACT,
     W_WORK,
+    StepBuffers,
 )
 from .walls import facet_contacts_of, facet_vertex_forces, plane_wall_contacts
 
@@ -381,16 +385,36 @@ def _place_member(pos, vel, accel, angvel, ref_pos, row, x, y, z, vx, vy, vz, wx
 
 
 @njit(cache=True, error_model="numpy")
+def collect_member_loads(particles, clumps):
+    """Each member's contact force, torque and position, of the rows this process holds
+    (``member_row`` ≥ 0), into ``clumps.member_load`` (template order)."""
+    force = particles.force
+    torque = particles.torque
+    pos = particles.pos
+    member_row = clumps.member_row
+    load = clumps.member_load
+    for k in range(member_row.size):
+        if member_row[k] < 0:
+            continue
+        row = np.uint64(member_row[k])
+        for d in range(3):
+            load[k, MEMBER_FORCE + d] = force[row, d]
+            load[k, MEMBER_TORQUE + d] = torque[row, d]
+            load[k, MEMBER_POSITION + d] = pos[row, d]
+
+
+@njit(cache=True, error_model="numpy")
 def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
-    """Advance clumps [first, last) by one step from their members' contact forces (docs/design.md
-    §2.19), member by member in template order, then place their members. Per clump:
+    """Advance clumps [first, last) by one step from their members' loads (``member_load``,
+    docs/design.md §2.19), member by member in template order, then place their members this
+    process holds (``member_row`` ≥ 0). Per clump:
     F = M g + Σ F_m, τ = Σ (x_m − x_c) × F_m + T_m; the centre by the spheres' leapfrog with background damping
     (:func:`de_domain.integrate.leapfrog_dof`); the orientation by NO_SQUISH
     (:func:`de_domain.rigid.rotational_leapfrog`) under τ + τ_d, τ_d = −α_v L − α_b |τ| sign(ω)
     per space component; then each member at x_c + R(q) b_m with v_c + ω × R(q) b_m and ω, its
     acceleration (v^{n+½} − v^{n−½})/Δt. ``terms[c]``: clump c's terms (``state.I_*``: kinetic
     energies at tⁿ with the mean of the half-step momenta, gravity, damping); ``shift[c]``: its
-    members' largest squared displacement since the last list build."""
+    placed members' largest squared displacement since the last list build."""
     dt = settings.dt
     gravity = settings.gravity
     local_damping = settings.local_damping
@@ -399,9 +423,8 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
     vel = particles.vel
     accel = particles.accel
     angvel = particles.angvel
-    force = particles.force
-    torque = particles.torque
     ref_pos = particles.ref_pos
+    load = clumps.member_load
     centre = clumps.pos
     velocity = clumps.vel
     quat = clumps.quat
@@ -421,15 +444,14 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
         fx = m * gravity[0]; fy = m * gravity[1]; fz = m * gravity[2]
         tx = 0.0; ty = 0.0; tz = 0.0
         for k in range(start[c], start[c + 1]):
-            row = np.uint64(member_row[k])
-            rx = pos[row, 0] - centre[c, 0]
-            ry = pos[row, 1] - centre[c, 1]
-            rz = pos[row, 2] - centre[c, 2]
-            gx = force[row, 0]; gy = force[row, 1]; gz = force[row, 2]
+            rx = load[k, MEMBER_POSITION] - centre[c, 0]
+            ry = load[k, MEMBER_POSITION + 1] - centre[c, 1]
+            rz = load[k, MEMBER_POSITION + 2] - centre[c, 2]
+            gx = load[k, MEMBER_FORCE]; gy = load[k, MEMBER_FORCE + 1]; gz = load[k, MEMBER_FORCE + 2]
             fx += gx; fy += gy; fz += gz
-            tx += ry * gz - rz * gy + torque[row, 0]
-            ty += rz * gx - rx * gz + torque[row, 1]
-            tz += rx * gy - ry * gx + torque[row, 2]
+            tx += ry * gz - rz * gy + load[k, MEMBER_TORQUE]
+            ty += rz * gx - rx * gz + load[k, MEMBER_TORQUE + 1]
+            tz += rx * gy - ry * gx + load[k, MEMBER_TORQUE + 2]
         clumps.force[c, 0] = fx; clumps.force[c, 1] = fy; clumps.force[c, 2] = fz
         clumps.torque[c, 0] = tx; clumps.torque[c, 1] = ty; clumps.torque[c, 2] = tz
         # the centre: the spheres' leapfrog, DOF by DOF (no tuple indexed by a variable: Numba
@@ -470,6 +492,8 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
         cx = centre[c, 0]; cy = centre[c, 1]; cz = centre[c, 2]
         vx = velocity[c, 0]; vy = velocity[c, 1]; vz = velocity[c, 2]
         for k in range(start[c], start[c + 1]):
+            if member_row[k] < 0:  # another rank's: placed there
+                continue
             row = np.uint64(member_row[k])
             rx, ry, rz = to_space(q_new, member_body[k, 0], member_body[k, 1], member_body[k, 2])
             d2max = max(d2max, _place_member(pos, vel, accel, angvel, ref_pos, row, cx + rx, cy + ry, cz + rz,
@@ -493,13 +517,15 @@ def _clump_region(settings, particles, clumps, terms, shift):
 @njit(cache=True, error_model="numpy")
 def integrate_clumps(settings, particles, clumps, terms, shift, integration):
     """Every clump advanced by one step (:func:`_clump_region`); their terms added to
-    ``integration`` clump by clump in order (the same bits for any thread count). Returns the
-    members' largest squared displacement since the last list build."""
+    ``integration`` clump by clump in order (the same bits for any thread count), if this
+    process books them (``clumps.books_terms``). Returns the placed members' largest squared
+    displacement since the last list build."""
     _clump_region(settings, particles, clumps, terms, shift)
     d2max = 0.0
     for c in range(clumps.mass.size):
-        for k in range(N_INTEGRATION):
-            integration[k] += terms[c, k]
+        if clumps.books_terms:
+            for k in range(N_INTEGRATION):
+                integration[k] += terms[c, k]
         d2max = max(d2max, shift[c])
     return d2max
 
@@ -632,6 +658,63 @@ def _particle_region(nb, settings, particles, params, pairs, walls, meshes, cand
 
 
 @njit(cache=True, error_model="numpy")
+def step_buffers(n, nc):
+    """The :data:`~de_domain.state.StepBuffers` of a step over ``n`` particle rows and ``nc`` clumps."""
+    nb = (n + PBLOCK - 1) // PBLOCK
+    return StepBuffers(np.zeros((nb, N_CONTACT_ENERGY)), np.zeros((nb, N_WALL_ENERGY + N_INTEGRATION)), np.zeros(nb),
+                       np.zeros((nc, N_INTEGRATION)), np.zeros(nc), np.zeros(N_CONTACT_ENERGY), np.zeros(N_WALL_ENERGY),
+                       np.zeros(N_INTEGRATION))
+
+
+@njit(cache=True, error_model="numpy")
+def step_forces(settings, particles, params, pairs, walls, meshes, candidates, clumps, buffers):
+    """The two parallel regions of one step: every contact, then every free particle advanced
+    (the clumps' members are left for :func:`finish_step`)."""
+    nb = buffers.shift.size
+    _pair_region(nb, settings, particles, params, pairs, buffers.contact)
+    _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, clumps, buffers.boundary,
+                     buffers.shift)
+
+
+@njit(cache=True, error_model="numpy")
+def finish_step(settings, particles, walls, meshes, candidates, clumps, buffers, books, clock):
+    """The serial end of one step, after :func:`step_forces` (and the members' loads collected in
+    ``clumps.member_load``): the blocks' sums in block order, the clumps advanced, the energy
+    books, the boundaries moved, the clock, and the rebuild test. Returns whether a list
+    rebuild is due before the next step."""
+    e1 = buffers.contact
+    e2 = buffers.boundary
+    dmax = buffers.shift
+    nb = dmax.size
+    contact = buffers.contact_sum
+    boundary = buffers.boundary_sum
+    integration = buffers.integration_sum
+    contact[:] = 0.0
+    boundary[:] = 0.0
+    integration[:] = 0.0
+    for b in range(nb):
+        for k in range(N_CONTACT_ENERGY):
+            contact[k] += e1[b, k]
+    for b in range(nb):
+        for k in range(N_WALL_ENERGY):
+            boundary[k] += e2[b, k]
+        for k in range(N_INTEGRATION):
+            integration[k] += e2[b, N_WALL_ENERGY + k]
+    d2 = 0.0
+    if clumps.mass.size:
+        d2 = integrate_clumps(settings, particles, clumps, buffers.clump_terms, buffers.clump_shift, integration)
+    record_energy(books, contact, boundary, integration)
+    for b in range(nb):
+        d2 = max(d2, dmax[b])
+    dw2 = _move_boundaries(settings, walls, meshes, candidates)
+    clock[CLOCK_TIME] += settings.dt
+    clock[CLOCK_STEPS] += 1.0
+    dp = math.sqrt(d2)
+    clock[CLOCK_PARTICLE_SHIFT] = dp
+    return dp + max(dp, math.sqrt(dw2)) > settings.skin
+
+
+@njit(cache=True, error_model="numpy")
 def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidates, clumps, books, clock):
     """Up to ``nsteps`` steps; stops early when the lists must be rebuilt before the
     next step. ``clock``: ``state.CLOCK_TIME``, ``CLOCK_STEPS`` (steps done),
@@ -649,46 +732,14 @@ def advance(nsteps, settings, particles, params, pairs, walls, meshes, candidate
     rest crashed after 50,000–100,000 steps in one call (numba issue 9029, fixed in
     0.59). A called function's stack is released when it returns.
     """
-    n = pairs.perm.size
-    nb = (n + PBLOCK - 1) // PBLOCK
-    e1 = np.zeros((nb, N_CONTACT_ENERGY))
-    e2 = np.zeros((nb, N_WALL_ENERGY + N_INTEGRATION))
-    dmax = np.zeros(nb)
-    rebuild = False
-    contact = np.empty(N_CONTACT_ENERGY)
-    boundary = np.empty(N_WALL_ENERGY)
-    integration = np.empty(N_INTEGRATION)
-    clump_terms = np.zeros((clumps.mass.size, N_INTEGRATION))
-    clump_shift = np.zeros(clumps.mass.size)
+    buffers = step_buffers(pairs.perm.size, clumps.mass.size)
     for _ in range(nsteps):
-        _pair_region(nb, settings, particles, params, pairs, e1)
-        _particle_region(nb, settings, particles, params, pairs, walls, meshes, candidates, clumps, e2, dmax)
-        contact[:] = 0.0
-        boundary[:] = 0.0
-        integration[:] = 0.0
-        for b in range(nb):
-            for k in range(N_CONTACT_ENERGY):
-                contact[k] += e1[b, k]
-        for b in range(nb):
-            for k in range(N_WALL_ENERGY):
-                boundary[k] += e2[b, k]
-            for k in range(N_INTEGRATION):
-                integration[k] += e2[b, N_WALL_ENERGY + k]
-        d2 = 0.0
+        step_forces(settings, particles, params, pairs, walls, meshes, candidates, clumps, buffers)
         if clumps.mass.size:
-            d2 = integrate_clumps(settings, particles, clumps, clump_terms, clump_shift, integration)
-        record_energy(books, contact, boundary, integration)
-        for b in range(nb):
-            d2 = max(d2, dmax[b])
-        dw2 = _move_boundaries(settings, walls, meshes, candidates)
-        clock[CLOCK_TIME] += settings.dt
-        clock[CLOCK_STEPS] += 1.0
-        dp = math.sqrt(d2)
-        clock[CLOCK_PARTICLE_SHIFT] = dp
-        if dp + max(dp, math.sqrt(dw2)) > settings.skin:
-            rebuild = True
-            break
-    return rebuild
+            collect_member_loads(particles, clumps)
+        if finish_step(settings, particles, walls, meshes, candidates, clumps, buffers, books, clock):
+            return True
+    return False
 
 
 @njit(parallel=True, cache=True)

@@ -47,10 +47,10 @@ def write_frame(directory, engine, step):
     particle_path = directory / f"particles_{step:08d}.vtu"
     facet_paths = [directory / f"facets{k}_{step:08d}.vtu" for k in range(len(engine.facets))]
     domain = getattr(engine, "domain", None)
+    clumps = getattr(engine, "clumps", None)
+    clump = clumps.member_of if clumps is not None and clumps.count else None  # over the global ids
     if domain is None:
         directory.mkdir(parents=True, exist_ok=True)
-        clumps = getattr(engine, "clumps", None)
-        clump = clumps.member_of if clumps is not None and clumps.count else None
         paths = [write_particles_vtu(particle_path, engine.particles, clump)]
         for path, mesh in zip(facet_paths, engine.facets, strict=True):
             paths.append(write_facets_vtu(path, mesh))
@@ -58,7 +58,7 @@ def write_frame(directory, engine, step):
     particles = engine.global_particles()  # collective
     if domain.comm.rank == 0:  # the facet meshes are global: identical on every rank
         directory.mkdir(parents=True, exist_ok=True)
-        write_particles_vtu(particle_path, particles)
+        write_particles_vtu(particle_path, particles, clump)
         for path, mesh in zip(facet_paths, engine.facets, strict=True):
             write_facets_vtu(path, mesh)
     domain.comm.Barrier()  # the files exist when any rank returns

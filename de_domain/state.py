@@ -101,12 +101,36 @@ ClumpArrays = namedtuple("ClumpArrays", [
     "mass",           # (nc,)
     "moments",        # (nc, 3): principal moments of inertia I1 ≤ I2 ≤ I3
     "member_start",   # (nc+1,) CSR: members of clump c are member_row[member_start[c]:member_start[c+1]]
-    "member_row",     # (m,) particle row of each member of the kernel (template order)
+    "member_row",     # (m,) particle row of each member of the kernel (template order); −1: another rank owns it
     "member_body",    # (m, 3) member centre in the body frame
     "force", "torque",  # (nc, 3): resultant on the clump of the last step (contacts + gravity), about its centre
+    "member_load",    # (m, MEMBER_COLUMNS): this step's contact force, torque and position of each member
+    "books_terms",    # bool: this process books the clumps' energy terms (one rank of a distributed run)
 ])
 """Rigid clumps of member spheres (docs/design.md §2.19): the members are particles for the
-contacts; the clumps carry their motion (:func:`de_domain.fused.integrate_clumps`)."""
+contacts; the clumps carry their motion (:func:`de_domain.fused.integrate_clumps`), from the
+members' loads collected into ``member_load`` (:func:`de_domain.fused.collect_member_loads`;
+over MPI ranks, gathered from every rank between the two: every rank then advances every
+clump with the same operands, and places the members it owns)."""
+
+# Columns of ClumpArrays.member_load: force (3), torque (3), position (3)
+MEMBER_FORCE = 0
+MEMBER_TORQUE = 3
+MEMBER_POSITION = 6
+MEMBER_COLUMNS = 9
+
+StepBuffers = namedtuple("StepBuffers", [
+    "contact",        # (nb, N_CONTACT_ENERGY): each pair block's contact terms
+    "boundary",       # (nb, N_WALL_ENERGY + N_INTEGRATION): each particle block's boundary, then integration terms
+    "shift",          # (nb,): each particle block's largest squared displacement since the last list build
+    "clump_terms",    # (nc, N_INTEGRATION): each clump's integration terms
+    "clump_shift",    # (nc,): each clump's members' largest squared displacement since the last list build
+    "contact_sum",    # (N_CONTACT_ENERGY,), (N_WALL_ENERGY,), (N_INTEGRATION,): the step's sums over the blocks
+    "boundary_sum",
+    "integration_sum",
+])
+"""Per-step sums of one step's parallel work items, added in a fixed order afterwards
+(:func:`de_domain.fused.step_forces`, :func:`de_domain.fused.finish_step`)."""
 
 # Energy books (Engine.energy), one float64 array: the state terms at tⁿ, then the
 # rate terms accumulated, of the first recorded step and of the last (trapezoidal rule).

@@ -86,8 +86,7 @@ class DemParticles(Section):
     grains: Literal["spheres", "clumps"] = Field(
         default="spheres",
         description="'spheres', or 'clumps': rigid grains of overlapping spheres shaped as the [[dem.clumps]] "
-                    "templates (source='cloud'; count grains, each of an equal-volume radius drawn from radius; "
-                    "one process, no mpirun)")
+                    "templates (source='cloud'; count grains, each of an equal-volume radius drawn from radius)")
 
 
 class DemClumpTemplate(Section):
@@ -156,7 +155,7 @@ class SpecimenSection(Section):
         default="spheres",
         description="'spheres', or 'clumps' (direct_shear, triaxial): rigid grains of overlapping spheres shaped as "
                     "the [[dem.clumps]] templates, drawn by share, each enlarged to its sieve diameter (equal volume), "
-                    "in random orientations; one process, no mpirun")
+                    "in random orientations")
     void_ratio: float = Field(
         default=0.65, gt=0.3, lt=1.5,
         description="target void ratio e = V_voids/V_solids of the specimen [-]")

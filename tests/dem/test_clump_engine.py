@@ -184,14 +184,6 @@ def test_clump_checkpoint_resumes_bit_identically(reference, tmp_path):
         assert np.array_equal(a, b)
 
 
-def test_clumps_are_refused_under_mpi():
-    from mpi4py import MPI
-
-    particles, clumps = Clumps.place([ROD], [0], [[0, 0, R]], [[1, 0, 0, 0]], MATERIALS)
-    with pytest.raises(ValueError, match="not yet distributed"):
-        Engine(particles, MATERIALS, clumps=clumps, comm=MPI.COMM_SELF)
-
-
 def test_frames_show_which_clump_each_member_belongs_to(tmp_path):
     import meshio
 

@@ -29,17 +29,32 @@ def compress(case, out, ranks):
     return {k: [r[k] for r in rows] for k in rows[0]}, done.stdout
 
 
-@pytest.mark.slow  # a lab test under mpirun, bit for bit: tests/shear/test_direct_shear_mpi.py
-def test_two_ranks_compress_the_one_rank_specimen_bit_for_bit(tmp_path):
-    spec = importlib.util.spec_from_file_location("tx", ROOT / "tests" / "triaxial" / "test_triaxial.py")
+def _module(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tests" / "triaxial" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(ROOT / "tests" / "triaxial"))
     spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.slow  # a lab test under mpirun, bit for bit: tests/shear/test_direct_shear_mpi.py
+@pytest.mark.parametrize("grains", ["spheres", "clumps"])
+def test_two_ranks_compress_the_one_rank_specimen_bit_for_bit(tmp_path, grains):
+    """Spheres, and two-sphere grains (radius expansion; clumps straddle the ranks' slabs: every
+    rank advances every clump)."""
+    module = _module("test_triaxial")
     case = tmp_path / "tx.toml"
-    case.write_text(module.MINI.format(name="tx_ranks", specimen=module.DENSE, strain=0.02))
+    if grains == "spheres":
+        case.write_text(module.MINI.format(name="tx_ranks", specimen=module.DENSE, strain=0.02))
+    else:
+        clumped = _module("test_triaxial_clumps")
+        case.write_text(module.MINI.format(name="tx_ranks", specimen=clumped.SPECIMEN, strain=0.02) + "\n"
+                        + clumped.ROD)
     one, _ = compress(case, tmp_path / "one", 1)
     two, out = compress(case, tmp_path / "two", 2)
     assert "DEM on 2 MPI ranks" in out
-    for name in ("positions", "radii"):
+    names = ("positions", "radii") + (("clump_centres", "clump_orientations") if grains == "clumps" else ())
+    for name in names:
         with np.load(tmp_path / "one" / "specimen.npz") as a, np.load(tmp_path / "two" / "specimen.npz") as b:
             assert np.array_equal(a[name], b[name]), name
     for key in EXACT:
