@@ -13,10 +13,11 @@ cached in ``benchmarks/out/clumps/`` (``--force`` makes them again):
   same way (:func:`de_domain.packing.random_cloud`).
 
 Box [0, 0.04]² × [0, 0.16] m of six plane walls; the W1 material (``beds.py``: k_n = 1e5 N/m at
-r = 1 mm, μ = 0.5, restitution 0.5), local damping 0.1. Settled by ``SETTLE_STEPS`` steps under
-``SETTLE_GRAVITY`` (−300 m/s²: the cloud falls and packs), then ``RELAX_STEPS`` under
-−9.81 m/s² (engine made again between them); Δt = 0.3 × the engine's critical step (a rod's
-members take the rod's critical mass, docs/design.md §2.19: its Δt is the smaller).
+r = 1 mm, μ = 0.5, restitution 0.5), local damping 0.1. Settled for ``SETTLE_TIME`` under
+``SETTLE_GRAVITY`` (−100 m/s²: the cloud falls and packs) with local damping 0.4, then
+``RELAX_TIME`` under −9.81 m/s² with 0.1 (engine made again between them); Δt = 0.3 × the
+engine's critical step (a rod's members take the rod's critical mass, docs/design.md §2.19: its
+Δt is the smaller, and it takes more steps).
 
 Timed: one untimed step (lists, kernels), then ``--steps`` steps under −9.81 m/s², twice
 (``--repeats``), the median printed. Printed per bed (on rank 0): member-sphere-steps/s (spheres
@@ -47,9 +48,10 @@ N_CLUMPS = 4000
 SIDE = 0.04
 HEIGHT = 0.16
 SEED = 11
-SETTLE_STEPS = 20000
-SETTLE_GRAVITY = -300.0
-RELAX_STEPS = 3000
+SETTLE_TIME = 0.1  # s: the cloud falls 0.15 m in 0.055 s at 100 m/s^2
+SETTLE_GRAVITY = -100.0
+SETTLE_DAMPING = 0.4
+RELAX_TIME = 0.01
 LOCAL_DAMPING = 0.1
 
 
@@ -73,22 +75,22 @@ def _rod():
     return ClumpTemplate.line(2, 1.5)
 
 
-def clump_engine(state, gravity, comm=None):
+def clump_engine(state, gravity, comm=None, damping=LOCAL_DAMPING):
     """An engine of the rods at ``state`` (a ClumpPacking)."""
     from de_domain import Engine
 
     particles, clumps = state.bodies(_materials())
-    return Engine(particles, _materials(), walls=_walls(), gravity=(0.0, 0.0, gravity), local_damping=LOCAL_DAMPING,
+    return Engine(particles, _materials(), walls=_walls(), gravity=(0.0, 0.0, gravity), local_damping=damping,
                   clumps=clumps, comm=comm)
 
 
-def sphere_engine(state, gravity, comm=None):
+def sphere_engine(state, gravity, comm=None, damping=LOCAL_DAMPING):
     """An engine of the free spheres at ``state`` (a dict: pos, radius, vel, angvel)."""
     from de_domain import Engine, Particles
 
     particles = Particles.from_spheres(state["pos"], state["radius"], materials=_materials(), velocities=state["vel"])
     particles.angvel[:] = state["angvel"]
-    return Engine(particles, _materials(), walls=_walls(), gravity=(0.0, 0.0, gravity), local_damping=LOCAL_DAMPING,
+    return Engine(particles, _materials(), walls=_walls(), gravity=(0.0, 0.0, gravity), local_damping=damping,
                   comm=comm)
 
 
@@ -105,16 +107,17 @@ def make_beds(log=print):
     _, member_radius = rods.members()
     pos, radius = random_cloud(np.sort(member_radius)[::-1], lo, hi, seed=SEED)
     spheres = {"pos": pos, "radius": radius, "vel": np.zeros_like(pos), "angvel": np.zeros_like(pos)}
-    for steps, gravity in ((SETTLE_STEPS, SETTLE_GRAVITY), (RELAX_STEPS, -9.81)):
+    stages = ((SETTLE_TIME, SETTLE_GRAVITY, SETTLE_DAMPING), (RELAX_TIME, -9.81, LOCAL_DAMPING))
+    for duration, gravity, damping in stages:
         t0 = time.perf_counter()
-        engine = clump_engine(rods, gravity)
-        engine.run(steps)
+        engine = clump_engine(rods, gravity, damping=damping)
+        engine.run(round(duration / engine.dt))
         rods = rods.moved(engine)
-        engine = sphere_engine(spheres, gravity)
-        engine.run(steps)
+        engine = sphere_engine(spheres, gravity, damping=damping)
+        engine.run(round(duration / engine.dt))
         p = engine.particles
         spheres = {"pos": p.pos.copy(), "radius": p.radius.copy(), "vel": p.vel.copy(), "angvel": p.angvel.copy()}
-        log(f"  {steps} steps at g = {gravity:g} m/s^2: {time.perf_counter() - t0:.0f} s")
+        log(f"  {duration} s at g = {gravity:g} m/s^2: {time.perf_counter() - t0:.0f} s")
     OUT.mkdir(parents=True, exist_ok=True)
     arrays = {f"rods_{k}": v for k, v in rods.arrays().items()}
     arrays.update(rods_velocities=rods.velocities, rods_angular_velocities=rods.angular_velocities)

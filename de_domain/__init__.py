@@ -35,8 +35,8 @@ viscous_damping=0.0, skin=None, comm=None, clumps=None)``
 ``de_domain.clumps``: ``ClumpTemplate(centres, radii)`` (mass properties of the union of the
 members, principal frame), ``ClumpTemplate.line(count, aspect_ratio, radius)``,
 ``Clumps.place(templates, template_of, centres, orientations, materials, ...)`` → (particles,
-clumps) for ``Engine(..., clumps=clumps)`` (also with ``comm``: every rank advances every clump;
-docs/design.md §2.19);
+clumps) for ``Engine(..., clumps=clumps)`` (also with ``comm``: a rank advances the clumps it owns a
+member of; docs/design.md §2.19);
 ``ClumpPacking`` (clumps between engines: templates, sizes, places, orientations; a specimen's
 ``clumps``) and ``clump_cloud``. ``de_domain.deposition.generate(method, diameters, settings,
 shapes=GrainShapes(templates, shares))`` makes a specimen of clumped grains.

@@ -38,6 +38,8 @@ from .neighbors import MAX_SPREAD, ContactRecords, record_keys
 from .particles import ARRAY_FIELDS
 from .state import BOOK_INITIALISED, MEMBER_COLUMNS
 
+CLUMP_COLUMNS = 19  # a clump's state between ranks: pos, vel, quat, angmom, force, torque
+
 ID_MASK = (1 << 32) - 1
 
 
@@ -52,17 +54,20 @@ class Domain:
         self.ids = np.empty(0, np.int64)
         self.exchange = None
         self.facet_contacts = RowGather(comm, 8)  # (global id, triangle, λ, F) of each facet contact
-        self.member_loads = RowGather(comm, 1 + MEMBER_COLUMNS)  # (member slot, load) of each owned clump member
+        self.member_loads = RowGather(comm, 1 + MEMBER_COLUMNS)  # (member slot, load) of members others need
+        self.clump_states = RowGather(comm, 1 + CLUMP_COLUMNS)  # (clump, state) of the clumps this rank leads
+        self.sent_members = np.zeros(0, np.bool_)  # per member slot: its load goes to the other ranks each step
         self._flag = np.zeros(1, np.int32)
         self.migrated = 0  # particles this rank sent away, all rebuilds
         self.rebuilds = 0
 
     def share_member_loads(self, clumps):
-        """Every clump member's load (``clumps.member_load``, :data:`~de_domain.state.ClumpArrays`)
-        on every rank: each rank's rows of the members it owns (``member_row`` ≥ 0), gathered
-        (collective). A member has one owner: each row arrives once, with its owner's bits."""
+        """The loads (``clumps.member_load``, :data:`~de_domain.state.ClumpArrays`) of the members
+        of clumps that straddle ranks, from their owners to every rank (collective): each rank
+        then holds every member's load of the clumps it advances. A member has one owner: each
+        row arrives once, with its owner's bits."""
         local = self.member_loads.local_rows(clumps.member_row.size)
-        count = _owned_member_loads(clumps.member_row, clumps.member_load, local)
+        count = _sent_member_loads(self.sent_members, clumps.member_load, local)
         rows, _, _ = self.member_loads.gather(count)
         _place_member_loads(rows, clumps.member_load)
 
@@ -118,11 +123,11 @@ class DistributedRun:
 
 
 @njit(cache=True)
-def _owned_member_loads(member_row, member_load, rows):
-    """Rows (member slot, load) of the members this rank owns, into ``rows``; returns their count."""
+def _sent_member_loads(sent, member_load, rows):
+    """Rows (member slot, load) of the members ``sent``, into ``rows``; returns their count."""
     n = 0
-    for k in range(member_row.size):
-        if member_row[k] >= 0:
+    for k in range(sent.size):
+        if sent[k]:
             rows[n, 0] = k
             for d in range(member_load.shape[1]):
                 rows[n, 1 + d] = member_load[k, d]
@@ -151,6 +156,7 @@ def distribute(engine, particles, comm):
     domain.ids = ids[mine]
     engine.particles = particles.take(mine)
     engine.acceleration = engine.acceleration[mine].copy()
+    share_clumps(engine)
 
 
 def _decompose(comm, pos, radius, skin, gathered=False):
@@ -183,6 +189,7 @@ def rebuild(engine):
     domain = engine.domain
     comm = domain.comm
     check_finite(engine)
+    sync_clumps(engine)  # every clump's state on every rank: a member may arrive where its clump was not advanced
     pending = engine.take_pending_records()  # a checkpoint's history, on every rank
     owned = engine.particles.owned
     if needs_rebalance(comm.allgather(int(owned.sum()))):
@@ -199,6 +206,7 @@ def rebuild(engine):
     send = {r: nl.iperm[np.searchsorted(domain.ids, mine["id"][targets[:, r]])] for r in outgoing}
     receive = {r: nl.iperm[np.searchsorted(domain.ids, d["particles"]["id"])] for r, d in received.items()}
     domain.exchange = GhostExchange(comm, send, receive)
+    share_clumps(engine)
     domain.rebuilds += 1
 
 
@@ -311,6 +319,7 @@ def run(engine, nsteps):
             due, agreed = facet_vertex_forces(engine, due), True
     if not engine.keep_sorted:
         engine.write_back()
+    sync_clumps(engine)
     if engine.wall_forces_each_run:
         wall_totals(engine)
     else:
@@ -402,3 +411,45 @@ def reduce_books(engine, books):
     total[BOOK_INITIALISED] = comm.allreduce(books[BOOK_INITIALISED], op=MPI.MAX)
     return total
 
+
+
+def share_clumps(engine):
+    """After the rows of this rank changed (collective): the clumps it advances (those it owns a
+    member of), the one rank that books each clump and sends its state (:func:`sync_clumps`: the
+    lowest that advances it), and the members whose loads go to the other ranks each step (its
+    owned members of clumps advanced on more than one rank)."""
+    c = engine.clumps
+    if not c.count:
+        return
+    domain = engine.domain
+    comm = domain.comm
+    _, member_row = engine.clump_rows()
+    clump_of = np.repeat(np.arange(c.count), np.diff(c.member_start))
+    held = np.zeros(c.count, np.bool_)
+    held[clump_of[member_row >= 0]] = True
+    holders = held.astype(np.int32)
+    comm.Allreduce(MPI.IN_PLACE, holders, op=MPI.SUM)
+    lead = np.where(held, comm.rank, comm.size).astype(np.int32)
+    comm.Allreduce(MPI.IN_PLACE, lead, op=MPI.MIN)
+    engine.set_clump_share(np.flatnonzero(held), lead == comm.rank)
+    domain.sent_members = (holders[clump_of] > 1) & (member_row >= 0)
+
+
+def sync_clumps(engine):
+    """Every clump's state (centre, velocity, orientation, angular momentum, last resultant) on
+    every rank, from the rank that books it (collective): a rank advances only the clumps it
+    owns a member of, so the others' copies are old until this (at each rebuild, before the
+    members migrate, and at the end of each run)."""
+    c = engine.clumps
+    if not c.count:
+        return
+    _, booked = engine.clump_share()
+    mine = np.flatnonzero(booked)
+    gather = engine.domain.clump_states
+    local = gather.local_rows(mine.size)
+    local[:mine.size] = np.column_stack([mine, c.pos[mine], c.vel[mine], c.quat[mine], c.angmom[mine],
+                                         c.force[mine], c.torque[mine]])
+    rows, _, _ = gather.gather(mine.size)
+    k = rows[:, 0].astype(np.int64)
+    c.pos[k], c.vel[k], c.quat[k] = rows[:, 1:4], rows[:, 4:7], rows[:, 7:11]
+    c.angmom[k], c.force[k], c.torque[k] = rows[:, 11:14], rows[:, 14:17], rows[:, 17:20]

@@ -126,7 +126,7 @@ class Engine:
             raise ValueError(f"Engine: the clumps are over {clumps.member_of.size} particles, the engine has "
                              f"{particles.n}")
         #: rigid clumps of member spheres (de_domain.clumps.Clumps; none by default): all of them, over
-        #: the global particle ids, on every rank of a distributed engine (each advances every clump)
+        #: the global particle ids, on every rank of a distributed engine (current after each run)
         self.clumps = clumps if clumps is not None else Clumps.none(particles.n)
         self.materials = [m if isinstance(m, Material) else Material(**m) for m in materials]
         n_mat = len(self.materials)
@@ -165,6 +165,7 @@ class Engine:
         self._free_member_of = np.zeros(0, np.int32)  # −1 per particle: no clump
         self._sorted_clump_rows = None  # the clumps' member_of and member rows in the spatial order
         self._member_load = np.zeros((0, MEMBER_COLUMNS))  # ClumpArrays.member_load
+        self._clump_share = None  # (active, booked) of ClumpArrays: set_clump_share; default all, all
         self._step_buffers = None  # fused.step_buffers of a distributed step with clumps
         self._forces_kernel = CachedEntry(fused.step_forces)
         self._collect_kernel = CachedEntry(fused.collect_member_loads)
@@ -213,6 +214,18 @@ class Engine:
                 member_row[slot[ids[owned]]] = owned
                 self._clump_rows = (member_of, member_row)
         return self._clump_rows
+
+    def set_clump_share(self, active, booked):
+        """The clumps this process advances (``active``, ascending) and those whose energy terms it
+        books (``booked``, bool per clump): a distributed run's choice (the clumps it owns a member
+        of, and one rank per clump); a serial engine advances and books them all."""
+        self._clump_share = (np.asarray(active, np.int64), np.asarray(booked, np.bool_))
+
+    def clump_share(self):
+        """(active, booked) of :meth:`set_clump_share` (by default every clump, every clump)."""
+        if self._clump_share is None or self._clump_share[1].size != self.clumps.count:
+            self.set_clump_share(np.arange(self.clumps.count), np.ones(self.clumps.count, np.bool_))
+        return self._clump_share
 
     @property
     def acceleration(self) -> np.ndarray:
@@ -518,10 +531,11 @@ class Engine:
                 member_of, member_row = sorted_of, sorted_row
         if self._member_load.shape[0] != c.member_index.size:
             self._member_load = np.zeros((c.member_index.size, MEMBER_COLUMNS))
+        active, booked = self.clump_share()
         return ClumpArrays(member_of=member_of, pos=c.pos, vel=c.vel, quat=c.quat, angmom=c.angmom, mass=c.mass,
                            moments=c.moments, member_start=c.member_start, member_row=member_row,
                            member_body=c.member_body, force=c.force, torque=c.torque, member_load=self._member_load,
-                           books_terms=self.runner.is_root)
+                           active=active, booked=booked)
 
     def _public_arrays(self):
         """The particle arrays in the public order, as the kernels take them."""

@@ -405,7 +405,7 @@ def collect_member_loads(particles, clumps):
 
 @njit(cache=True, error_model="numpy")
 def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
-    """Advance clumps [first, last) by one step from their members' loads (``member_load``,
+    """Advance the clumps ``clumps.active[first:last]`` by one step from their members' loads (``member_load``,
     docs/design.md §2.19), member by member in template order, then place their members this
     process holds (``member_row`` ≥ 0). Per clump:
     F = M g + Σ F_m, τ = Σ (x_m − x_c) × F_m + T_m; the centre by the spheres' leapfrog with background damping
@@ -434,7 +434,9 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
     start = clumps.member_start
     member_row = clumps.member_row
     member_body = clumps.member_body
-    for c in range(first, last):
+    active = clumps.active
+    for a in range(first, last):
+        c = active[a]
         d2max = 0.0
         ke_t = 0.0
         potential = 0.0
@@ -507,23 +509,24 @@ CBLOCK = 64  # clumps per parallel work item
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _clump_region(settings, particles, clumps, terms, shift):
-    """:func:`_advance_clumps` over blocks of ``CBLOCK`` clumps, in parallel (a clump's members
-    are its own rows: no two work items write one row)."""
-    nc = clumps.mass.size
+    """:func:`_advance_clumps` over blocks of ``CBLOCK`` active clumps, in parallel (a clump's
+    members are its own rows: no two work items write one row)."""
+    nc = clumps.active.size
     for b in prange((nc + CBLOCK - 1) // CBLOCK):
         _advance_clumps(b * CBLOCK, min((b + 1) * CBLOCK, nc), settings, particles, clumps, terms, shift)
 
 
 @njit(cache=True, error_model="numpy")
 def integrate_clumps(settings, particles, clumps, terms, shift, integration):
-    """Every clump advanced by one step (:func:`_clump_region`); their terms added to
-    ``integration`` clump by clump in order (the same bits for any thread count), if this
-    process books them (``clumps.books_terms``). Returns the placed members' largest squared
-    displacement since the last list build."""
+    """The active clumps advanced by one step (:func:`_clump_region`); the terms of those this
+    process books (``clumps.booked``) added to ``integration`` clump by clump in order (the same
+    bits for any thread count). Returns the placed members' largest squared displacement since
+    the last list build."""
     _clump_region(settings, particles, clumps, terms, shift)
     d2max = 0.0
-    for c in range(clumps.mass.size):
-        if clumps.books_terms:
+    for a in range(clumps.active.size):
+        c = clumps.active[a]
+        if clumps.booked[c]:
             for k in range(N_INTEGRATION):
                 integration[k] += terms[c, k]
         d2max = max(d2max, shift[c])

@@ -105,13 +105,14 @@ ClumpArrays = namedtuple("ClumpArrays", [
     "member_body",    # (m, 3) member centre in the body frame
     "force", "torque",  # (nc, 3): resultant on the clump of the last step (contacts + gravity), about its centre
     "member_load",    # (m, MEMBER_COLUMNS): this step's contact force, torque and position of each member
-    "books_terms",    # bool: this process books the clumps' energy terms (one rank of a distributed run)
+    "active",         # (na,) ascending: the clumps this process advances (all of them on one process)
+    "booked",         # (nc,) bool: this process books clump c's energy terms (one rank per clump)
 ])
 """Rigid clumps of member spheres (docs/design.md §2.19): the members are particles for the
 contacts; the clumps carry their motion (:func:`de_domain.fused.integrate_clumps`), from the
-members' loads collected into ``member_load`` (:func:`de_domain.fused.collect_member_loads`;
-over MPI ranks, gathered from every rank between the two: every rank then advances every
-clump with the same operands, and places the members it owns)."""
+members' loads collected into ``member_load`` (:func:`de_domain.fused.collect_member_loads`).
+Over MPI ranks a rank advances the clumps it owns a member of (``active``), with the loads of
+their members on other ranks gathered between the two, and places the members it owns."""
 
 # Columns of ClumpArrays.member_load: force (3), torque (3), position (3)
 MEMBER_FORCE = 0

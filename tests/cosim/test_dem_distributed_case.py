@@ -128,8 +128,8 @@ def small_clump_case(tmp_path):
 
 
 def test_clumped_dem_case_under_mpirun_matches_the_serial_run_and_resumes(tmp_path):
-    """Clumps under ``mpirun -n 2`` (every rank advances every clump from the members' loads of
-    both ranks): the members and the clumps' state bit for bit, the frames with each member's
+    """Clumps under ``mpirun -n 2`` (a clump straddling the ranks advanced on both from the
+    members' loads of both): the members and the clumps' state bit for bit, the frames with each member's
     clump, and a run stopped part-way resumes on 2 ranks to the same end."""
     case = small_clump_case(tmp_path)
     serial, mpi, split = tmp_path / "serial", tmp_path / "mpi", tmp_path / "split"

@@ -269,7 +269,7 @@ def clump_pile_engine(comm=None):
 
 
 def clump_snapshot(engine):
-    """:func:`snapshot` and the clumps' state (replicated on every rank)."""
+    """:func:`snapshot` and the clumps' state (every clump's, current on every rank after a run)."""
     out = snapshot(engine)
     for k in ("pos", "vel", "quat", "angmom", "force", "torque"):
         out[f"clump_{k}"] = getattr(engine.clumps, k).copy()
@@ -288,8 +288,9 @@ def straddling_clumps(engine):
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_clumps_straddling_subdomains_move_as_in_serial(threads):
-    """Clumps whose members sit on different ranks (the clump state on every rank, the members'
-    loads gathered in template order each step) give the serial pile bit for bit: members,
+    """Clumps whose members sit on different ranks (advanced on each rank that owns a member, from
+    the members' loads of all of them; every clump's state on every rank after each run) give the
+    serial pile bit for bit: members,
     clumps, contact histories, wall forces; the energy books agree."""
     numba.set_num_threads(threads)
     serial, spread = run_side_by_side(clump_pile_engine, (1, 40, 1500))

@@ -40,8 +40,7 @@ def _module(name):
 @pytest.mark.slow  # a lab test under mpirun, bit for bit: tests/shear/test_direct_shear_mpi.py
 @pytest.mark.parametrize("grains", ["spheres", "clumps"])
 def test_two_ranks_compress_the_one_rank_specimen_bit_for_bit(tmp_path, grains):
-    """Spheres, and two-sphere grains (radius expansion; clumps straddle the ranks' slabs: every
-    rank advances every clump)."""
+    """Spheres, and two-sphere grains (radius expansion; clumps straddle the ranks' slabs)."""
     module = _module("test_triaxial")
     case = tmp_path / "tx.toml"
     if grains == "spheres":
