@@ -470,7 +470,6 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
         q = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
         inertia = (moments[c, 0], moments[c, 1], moments[c, 2])
         lx = angmom[c, 0]; ly = angmom[c, 1]; lz = angmom[c, 2]
-        bx, by, bz = to_body(q, lx, ly, lz)
         # ω at tⁿ, estimated from L^{n−½} + ½ Δt τ (the sign the local damping opposes; YADE's
         # NewtonIntegrator does the same: with ω^{n−½} a clump's fast rotational mode is amplified)
         bx, by, bz = to_body(q, lx + 0.5 * dt * tx, ly + 0.5 * dt * ty, lz + 0.5 * dt * tz)
