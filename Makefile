@@ -84,7 +84,7 @@ bench: setup
 	$(PY) benchmarks/dem_throughput.py
 	$(PY) benchmarks/fe_throughput.py
 
-# DEM peers side by side (W1 bed): installs the Debian liggghts and yade packages
+# DEM peers side by side (W1 bed; rods against fix multisphere): installs the Debian liggghts and yade packages
 # here only (never in setup/test).
 bench-peers: setup
 	@missing=""; for p in liggghts yade; do \
@@ -97,6 +97,7 @@ bench-peers: setup
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 	$(PY) benchmarks/compare_peers.py
+	$(PY) benchmarks/clump_scaling.py --liggghts
 
 # coupled FE step against the DEM window and the FE step alone, the DEM step's slowdown
 # when other bytes stream through the cache between its steps, and a 2-rank coupled step

@@ -96,6 +96,31 @@ def counts(n):
     return out
 
 
+def liggghts_contacts(side_x, side_y, height):
+    """The W1 contact law and the six walls of the box [0, side_x] × [0, side_y] × [0, height] as
+    LIGGGHTS 3.8 commands (``hooke/stiffness``: k_n = 1e5 N/m, k_t = k_n / 4, the normal dashpot
+    ``gamman``, μ; the sides may be LIGGGHTS variables such as ``${L}``)."""
+    m = MATERIAL
+    lines = ["fix m1 all property/global kn peratomtypepair 1 1.0e5",
+             "fix m2 all property/global kt peratomtypepair 1 2.5e4",
+             "fix m3 all property/global gamman peratomtypepair 1 2.0e4",
+             "fix m4 all property/global gammat peratomtypepair 1 0.0",
+             f"fix m5 all property/global coefficientFriction peratomtypepair 1 {m['friction']:g}",
+             "fix m6 all property/global youngsModulus peratomtype 1.0e8",
+             f"fix m7 all property/global poissonsRatio peratomtype {m['poisson']:g}",
+             f"fix m8 all property/global coefficientRestitution peratomtypepair 1 {m['restitution']:g}",
+             "",
+             "pair_style gran model hooke/stiffness tangential history limitForce on tangential_damping off",
+             "pair_coeff * *",
+             ""]
+    for name, axis, at in (("xw1", "x", "0.0"), ("xw2", "x", side_x), ("yw1", "y", "0.0"), ("yw2", "y", side_y),
+                           ("zw1", "z", "0.0"), ("zw2", "z", height)):
+        at = f"{at:g}" if isinstance(at, float) else at
+        lines.append(f"fix {name} all wall/gran model hooke/stiffness tangential history primitive type 1 "
+                     f"{axis}plane {at} &\n    limitForce on tangential_damping off")
+    return "\n".join(lines)
+
+
 def materials():
     from de_domain import Material
 

@@ -1,9 +1,9 @@
-"""Clumps against spheres, on one process and over MPI ranks: member-sphere-steps/s on settled beds.
+"""Clumps against spheres and against LIGGGHTS's ``fix multisphere``, on one rank and over MPI ranks.
 
-    .venv/bin/python benchmarks/clump_scaling.py                    # 1 rank (threads: NUMBA_NUM_THREADS)
-    mpirun --bind-to none -n 2 .venv/bin/python benchmarks/clump_scaling.py
+    .venv/bin/python benchmarks/clump_scaling.py                      # 1 and 2 ranks, ours
+    .venv/bin/python benchmarks/clump_scaling.py --liggghts           # and LIGGGHTS 3.8 in each round
 
-Two beds of the same number of spheres in the same box, made by one process on first use and
+Two beds of the same number of spheres in the same box, made by this script on first use and
 cached in ``benchmarks/out/clumps/`` (``--force`` makes them again):
 
 * **clumps**: ``N_CLUMPS`` rods of two equal overlapping spheres (aspect ratio 1.5), equal-volume
@@ -19,17 +19,25 @@ r = 1 mm, μ = 0.5, restitution 0.5), local damping 0.1. Settled for ``SETTLE_TI
 engine's critical step (a rod's members take the rod's critical mass, docs/design.md §2.19: its
 Δt is the smaller, and it takes more steps).
 
-Timed: one untimed step (lists, kernels), then ``--steps`` steps under −9.81 m/s², twice
-(``--repeats``), the median printed. Printed per bed (on rank 0): member-sphere-steps/s (spheres
-× steps / s), Δt, contacts per sphere (pairs × 2 / spheres), and with clumps over ranks the
-share of the time spent gathering the members' loads (``Domain.share_member_loads``) and the
-clumps that straddle the ranks. A clump step costs more than a sphere step for the same spheres
-by its third region (the clumps advanced, their members placed) and, over ranks, by the gather
-of every member's load on every rank each step.
+Each configuration is a worker process (``mpirun -n R`` for R > 1 ranks, 1 Numba thread a rank):
+one untimed step, then ``--steps`` steps timed; ``--repeats`` rounds, every configuration in each
+(interleaved). Printed: member-sphere-steps/s (spheres × steps / s; median and each round),
+contacts per sphere (pairs × 2 / spheres; pairs within a rod are not contacts), with clumps over
+ranks the share of the time in the gather of the members' loads (``Domain.share_member_loads``)
+and the clumps that straddle the ranks; then clumps / spheres and clumps / LIGGGHTS, round by round.
+
+``--liggghts``: LIGGGHTS 3.8 (Debian's ``liggghts``; ``make bench-peers`` installs it) on the
+same number of rods of the bed's shape and mean size (``LIGGGHTS_DECK``: ``particletemplate/
+multisphere`` of the two members, ``insert/pack`` at random in the box, ``fix multisphere``,
+the linear ``hooke/stiffness`` law with k_n = 1e5 N/m), settled as the bed (under the same
+gravities and times, at our clumps' Δt; LIGGGHTS has no local damping), then the same timed steps.
+It is a bed of the same grains, not the same bed (LIGGGHTS's ``fix multisphere`` cannot be given
+our positions and orientations); its contacts per sphere are printed beside ours.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import time
@@ -151,7 +159,8 @@ class _Timed:
 
 
 def time_bed(build, steps, comm):
-    """(seconds for ``steps`` steps, Δt, contacts per sphere, gather seconds, straddling clumps)."""
+    """Rate and counts of ``steps`` steps of the engine ``build(comm)`` after one untimed step:
+    a dict (member-sphere-steps/s, Δt, contacts per sphere, the gather's share, straddling clumps)."""
     engine = build(comm)
     engine.run(1)
     gather = None
@@ -172,43 +181,137 @@ def time_bed(build, steps, comm):
         member_of, _ = engine.clump_rows()
         ranks = engine.runner.concatenate(np.unique(member_of[p.owned & (member_of >= 0)]))
         straddling = int(np.count_nonzero(np.bincount(ranks, minlength=engine.clumps.count) > 1))
-    return seconds, engine.dt, 2.0 * contacts / spheres, (gather.seconds if gather else 0.0), straddling
+    return {"rate": spheres * steps / seconds, "dt": engine.dt, "contacts": 2.0 * contacts / spheres,
+            "gather": (gather.seconds / seconds if gather else 0.0), "straddling": straddling}
+
+
+def worker(kind, steps):
+    """One configuration, under ``mpirun`` or alone: prints its :func:`time_bed` dict as JSON on rank 0."""
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    rods, spheres = load_beds()
+    def build(c):
+        return clump_engine(rods, -9.81, c) if kind == "clumps" else sphere_engine(spheres, -9.81, c)
+
+    result = time_bed(build, steps, comm if comm.size > 1 else None)
+    if comm.rank == 0:
+        print("RESULT " + json.dumps(result))
+
+
+# LIGGGHTS 3.8 deck: rods of the clumps bed's shape and mean size (equal-volume radius 1.0 mm, members
+# 0.84 mm at ±0.42 mm), as many as the bed, in its box, inserted at random (insert/pack), settled as the
+# bed (no local damping in LIGGGHTS: a longer settle), then timed. ${...}: LIGGGHTS variables.
+LIGGGHTS_DECK = """\
+atom_style\tsphere
+atom_modify\tmap array
+boundary\tf f f
+newton\t\toff
+communicate\tsingle vel yes
+units\t\tsi
+region\t\tbox block 0 @SIDE@ 0 @SIDE@ 0 @HEIGHT@ units box
+create_box\t1 box
+neighbor\t0.00016 bin
+neigh_modify\tdelay 0
+@CONTACTS@
+fix pts1 all particletemplate/multisphere 15485863 atom_type 1 density constant @DENSITY@ nspheres 2 ntry 1000000 &
+    spheres -0.00042 0 0 0.00084 0.00042 0 0 0.00084 type 1
+fix pdd1 all particledistribution/discrete 32452843 1 pts1 1.0
+region ins block 0.002 @INNER@ 0.002 @INNER@ 0.002 @TOP@ units box
+fix ins all insert/pack seed 49979687 distributiontemplate pdd1 vel constant 0 0 0 orientation random &
+    insert_every once overlapcheck yes all_in yes particles_in_region @N_CLUMPS@ region ins
+fix ms all multisphere
+fix grav all gravity @SETTLE_G@ vector 0.0 0.0 -1.0
+compute cn all contact/atom
+compute cnsum all reduce sum c_cn
+thermo_style custom step atoms c_cnsum
+thermo 1000
+thermo_modify lost ignore norm no
+timestep @DT@
+run @SETTLE_STEPS@
+unfix grav
+fix grav2 all gravity 9.81 vector 0.0 0.0 -1.0
+run @RELAX_STEPS@
+run 1
+run @STEPS@
+"""
+
+
+def liggghts(workdir, ranks, steps, dt):
+    """LIGGGHTS on the rods (deck above) on ``ranks`` ranks: member-sphere-steps/s of the timed block and
+    contacts per sphere (contact/atom summed, / spheres) after it."""
+    import re
+
+    import mpi_launch
+    from beds import MATERIAL, liggghts_contacts
+    deck = LIGGGHTS_DECK
+    values = {"SIDE": SIDE, "HEIGHT": HEIGHT, "INNER": SIDE - 0.002, "TOP": HEIGHT - 0.002, "N_CLUMPS": N_CLUMPS,
+              "CONTACTS": liggghts_contacts(SIDE, SIDE, HEIGHT), "DENSITY": MATERIAL["density"],
+              "SETTLE_G": -SETTLE_GRAVITY,
+              "DT": dt, "SETTLE_STEPS": round(SETTLE_TIME / dt), "RELAX_STEPS": round(RELAX_TIME / dt),
+              "STEPS": steps}
+    for key, value in values.items():
+        deck = deck.replace(f"@{key}@", f"{value:g}" if isinstance(value, float) else str(value))
+    (Path(workdir) / "in.rods").write_text(deck)
+    cmd = ["liggghts", "-echo", "none", "-in", "in.rods", "-log", f"log.{ranks}"]
+    if ranks > 1:
+        cmd = ["mpirun", "--bind-to", "none", "-np", str(ranks)] + cmd
+    mpi_launch.run(cmd, env=mpi_launch.mpi_env(OMP_NUM_THREADS=1), cwd=workdir, timeout=3600)
+    log = (Path(workdir) / f"log.{ranks}").read_text()
+    seconds, atoms = re.findall(r"Loop time of ([0-9.eE+-]+) on \d+ procs for \d+ steps with (\d+) atoms", log)[-1]
+    contacts = float(re.findall(r"^\s*\d+\s+\d+\s+([0-9.eE+-]+)\s*$", log, re.M)[-1])
+    return {"rate": int(atoms) * steps / float(seconds), "contacts": contacts / int(atoms)}
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=1000)
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--repeats", type=int, default=2, help="rounds, every configuration in each (median)")
+    ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--liggghts", action="store_true", help="LIGGGHTS fix multisphere on rods in each round too")
     ap.add_argument("--force", action="store_true", help="make the beds again")
+    ap.add_argument("--worker", choices=["spheres", "clumps"], help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
-    import numba
-    from mpi4py import MPI
-    comm = MPI.COMM_WORLD
-    if comm.rank == 0 and (args.force or not (OUT / "beds.npz").exists()):
+    if args.worker:
+        worker(args.worker, args.steps)
+        return
+    import tempfile
+
+    import mpi_launch
+    if args.force or not (OUT / "beds.npz").exists():
         print(f"making the beds ({N_CLUMPS} rods, {2 * N_CLUMPS} spheres) in {OUT}")
         make_beds()
-    comm.Barrier()
-    rods, spheres = load_beds()
-    distributed = comm if comm.size > 1 else None
-    builds = {"spheres": lambda c: sphere_engine(spheres, -9.81, c), "clumps": lambda c: clump_engine(rods, -9.81, c)}
-    results = {name: [] for name in builds}
-    for _ in range(args.repeats):  # interleaved
-        for name, build in builds.items():
-            results[name].append(time_bed(build, args.steps, distributed))
-    if comm.rank != 0:
-        return
-    print(f"{comm.size} rank(s) x {numba.get_num_threads()} thread(s), {args.steps} steps, median of {args.repeats}")
-    rate = {}
-    for name, rows in results.items():
-        seconds = statistics.median(r[0] for r in rows)
-        _, dt, z, gather, straddling = rows[0]
-        rate[name] = 2 * N_CLUMPS * args.steps / seconds
-        line = f"  {name:8s} {rate[name]:.3e} member-sphere-steps/s, dt {dt:.3g} s, {z:.2f} contacts per sphere"
-        if name == "clumps" and comm.size > 1:
-            line += (f", member-load gather {statistics.median(r[3] for r in rows) / seconds:.1%} of the time, "
-                     f"{straddling} of {N_CLUMPS} clumps straddle the ranks")
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(args.repeats):  # interleaved
+            for ranks in args.ranks:
+                for kind in ("spheres", "clumps"):
+                    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", kind, "--steps", str(args.steps)]
+                    if ranks > 1:
+                        cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks)] + cmd
+                    env = mpi_launch.mpi_env(NUMBA_NUM_THREADS=1)
+                    results.setdefault((kind, ranks), []).append(mpi_launch.run_json(cmd, "RESULT ", env=env,
+                                                                                     timeout=1800))
+                if args.liggghts:
+                    dt = results[("clumps", ranks)][-1]["dt"]
+                    results.setdefault(("LIGGGHTS rods", ranks), []).append(liggghts(tmp, ranks, args.steps, dt))
+    print(f"member-sphere-steps/s, 1 thread a rank, {args.steps} steps, median of {args.repeats} interleaved rounds")
+    for (kind, ranks), rows in results.items():
+        rate = statistics.median(r["rate"] for r in rows)
+        rates = ", ".join(f"{r['rate']:.3e}" for r in rows)
+        line = f"  {kind:14s} {ranks} rank(s): {rate:.3e} ({rates}), {rows[0]['contacts']:.2f} contacts per sphere"
+        if kind == "clumps" and ranks > 1:
+            line += (f", the member-load gather {statistics.median(r['gather'] for r in rows):.1%} of the time, "
+                     f"{rows[0]['straddling']} of {N_CLUMPS} clumps straddle the ranks")
         print(line)
-    print(f"  clump step / sphere step per member-sphere-step: {rate['clumps'] / rate['spheres']:.2f}")
+    for ranks in args.ranks:
+        pairs = zip(results[("clumps", ranks)], results[("spheres", ranks)], strict=True)
+        ratio = [c["rate"] / s["rate"] for c, s in pairs]
+        print(f"  clumps / spheres at {ranks} rank(s): " + ", ".join(f"{r:.2f}" for r in ratio))
+        if args.liggghts:
+            pairs = zip(results[("clumps", ranks)], results[("LIGGGHTS rods", ranks)], strict=True)
+            print(f"  clumps / LIGGGHTS rods at {ranks} rank(s): " + ", ".join(f"{c['rate'] / g['rate']:.2f}"
+                                                                              for c, g in pairs))
 
 
 if __name__ == "__main__":

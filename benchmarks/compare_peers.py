@@ -69,30 +69,7 @@ neigh_modify\tdelay 0
 read_dump\tbed_${N}.dump @TIMESTEP@ x y z radius box no add yes
 set\t\tgroup all density @DENSITY@
 
-fix m1 all property/global kn peratomtypepair 1 1.0e5
-fix m2 all property/global kt peratomtypepair 1 2.5e4
-fix m3 all property/global gamman peratomtypepair 1 2.0e4
-fix m4 all property/global gammat peratomtypepair 1 0.0
-fix m5 all property/global coefficientFriction peratomtypepair 1 @FRICTION@
-fix m6 all property/global youngsModulus peratomtype 1.0e8
-fix m7 all property/global poissonsRatio peratomtype @POISSON@
-fix m8 all property/global coefficientRestitution peratomtypepair 1 @RESTITUTION@
-
-pair_style gran model hooke/stiffness tangential history limitForce on tangential_damping off
-pair_coeff * *
-
-fix xw1 all wall/gran model hooke/stiffness tangential history primitive type 1 xplane 0.0 &
-    limitForce on tangential_damping off
-fix xw2 all wall/gran model hooke/stiffness tangential history primitive type 1 xplane ${L} &
-    limitForce on tangential_damping off
-fix yw1 all wall/gran model hooke/stiffness tangential history primitive type 1 yplane 0.0 &
-    limitForce on tangential_damping off
-fix yw2 all wall/gran model hooke/stiffness tangential history primitive type 1 yplane ${L} &
-    limitForce on tangential_damping off
-fix zw1 all wall/gran model hooke/stiffness tangential history primitive type 1 zplane 0.0 &
-    limitForce on tangential_damping off
-fix zw2 all wall/gran model hooke/stiffness tangential history primitive type 1 zplane @H@ &
-    limitForce on tangential_damping off
+@CONTACTS@
 
 fix integr all nve/sphere
 fix grav all gravity @G@ vector 0.0 0.0 -1.0
@@ -157,7 +134,8 @@ def peer_inputs(sizes):
     m = beds.MATERIAL
     values = dict(STEPS=STEPS, H=f"{beds.HEIGHT:g}", SKIN=f"{beds.SKIN:g}", TIMESTEP=beds.SETTLE_STEPS,
                   DENSITY=f"{m['density']:g}", FRICTION=f"{m['friction']:g}", POISSON=f"{m['poisson']:g}",
-                  RESTITUTION=f"{m['restitution']:g}", DT=f"{beds.DT:g}")
+                  RESTITUTION=f"{m['restitution']:g}", DT=f"{beds.DT:g}",
+                  CONTACTS=beds.liggghts_contacts("${L}", "${L}", beds.HEIGHT))
     deck, script = beds.OUT / "in.bed", beds.OUT / "yade_bed.py"
     deck.write_text(_fill(LIGGGHTS_DECK, G=f"{-beds.GRAVITY:g}", **values))
     script.write_text(_fill(YADE_SCRIPT, G=f"{beds.GRAVITY:g}", **values))

@@ -24,19 +24,24 @@ TIMEOUT = 240  # s; each run below takes a few seconds
 STEPS = 400
 
 
-def small_case(tmp_path, count=300):
-    """The small settling case of test_dem_case_run.py: 300 spheres, 400 steps, frames."""
-    data = tomllib.loads(DEMO.read_text())
-    data["case"]["name"] = "small_mpi"
+def shrunk_case(tmp_path, demo, name, count, side, top):
+    """``demo`` with ``count`` grains in a ``side``-wide box up to ``top``, 400 steps, frames."""
+    data = tomllib.loads(demo.read_text())
+    data["case"]["name"] = name
     data["dem"]["particles"]["count"] = count
-    data["dem"]["particles"]["box"] = [[0.0, 0.0, 0.0], [0.015, 0.015, 0.03]]
+    data["dem"]["particles"]["box"] = [[0.0, 0.0, 0.0], [side, side, top]]
     for w in data["dem"]["walls"]:
-        w["point"] = [min(c, 0.015) for c in w["point"]]
+        w["point"] = [min(c, side) for c in w["point"]]
     data["time"] = {"steps": STEPS, "safety_factor": 0.3}
     data["output"] = {"interval": 1e-4, "vtk": True}
-    path = tmp_path / "small.toml"
+    path = tmp_path / f"{name}.toml"
     path.write_text(tomli_w.dumps(data))
     return path
+
+
+def small_case(tmp_path, count=300):
+    """The small settling case of test_dem_case_run.py: 300 spheres, 400 steps, frames."""
+    return shrunk_case(tmp_path, DEMO, "small_mpi", count, 0.015, 0.03)
 
 
 def cosim(*args, n=None):
@@ -114,17 +119,7 @@ def test_dem_case_under_mpirun_matches_the_serial_run_and_resumes(tmp_path):
 def small_clump_case(tmp_path):
     """The clumps demo (rods and bent three-sphere grains) made small: 120 grains in a 20 mm box,
     400 steps, frames."""
-    data = tomllib.loads((ROOT / "runs" / "demo_dem_clumps.toml").read_text())
-    data["case"]["name"] = "small_clumps_mpi"
-    data["dem"]["particles"]["count"] = 120
-    data["dem"]["particles"]["box"] = [[0.0, 0.0, 0.0], [0.02, 0.02, 0.06]]
-    for w in data["dem"]["walls"]:
-        w["point"] = [min(c, 0.02) for c in w["point"]]
-    data["time"] = {"steps": STEPS, "safety_factor": 0.3}
-    data["output"] = {"interval": 1e-4, "vtk": True}
-    path = tmp_path / "clumps.toml"
-    path.write_text(tomli_w.dumps(data))
-    return path
+    return shrunk_case(tmp_path, ROOT / "runs" / "demo_dem_clumps.toml", "small_clumps_mpi", 120, 0.02, 0.06)
 
 
 def test_clumped_dem_case_under_mpirun_matches_the_serial_run_and_resumes(tmp_path):

@@ -195,24 +195,28 @@ def owner_of_pairs(engine):
     return keys.tolist(), ranks.tolist()
 
 
-def test_checkpoint_resumes_with_another_rank_count(tmp_path_factory):
+@pytest.mark.parametrize("grains", ["spheres", "clumps"])
+def test_checkpoint_resumes_with_another_rank_count(tmp_path_factory, grains):
     """Written by size − 1 ranks (a sub-communicator; 1 rank: the serial engine),
-    resumed by all: continues bit-identically to an uninterrupted serial run."""
+    resumed by all: continues bit-identically to an uninterrupted serial run (the loose pile
+    of spheres, and the clump pile: its clumps too)."""
+    build, state, before, after = {"spheres": (loose_pile, snapshot, 120, 150),
+                                   "clumps": (clump_pile_engine, clump_snapshot, 800, 700)}[grains]
     path = COMM.bcast(str(tmp_path_factory.mktemp("ckpt") / "pile.npz") if COMM.rank == 0 else None)
     writers = COMM.Split(0 if COMM.rank < COMM.size - 1 else MPI.UNDEFINED, COMM.rank)
-    serial = loose_pile()
-    serial.run(120)
+    serial = build()
+    serial.run(before)
     if writers != MPI.COMM_NULL:
-        first = loose_pile(comm=writers if writers.size > 1 else None)
-        first.run(120)
+        first = build(comm=writers if writers.size > 1 else None)
+        first.run(before)
         if writers.size > 1 or writers.rank == 0:
             first.save_checkpoint(path)
         writers.Free()
     COMM.Barrier()
     resumed = Engine.load_checkpoint(path, comm=COMM)
-    serial.run(150)
-    resumed.run(150)
-    assert_identical(snapshot(serial), snapshot(resumed))
+    serial.run(after)
+    resumed.run(after)
+    assert_identical(state(serial), state(resumed))
     assert resumed.energy()["total"] == pytest.approx(serial.energy()["total"], rel=1e-9)
 
 
@@ -304,27 +308,6 @@ def test_clumps_straddling_subdomains_move_as_in_serial(threads):
     for k in ("total", "kinetic_translational", "kinetic_rotational", "elastic_normal", "friction",
               "background_damping", "residual"):
         assert spread_energy[k] == pytest.approx(energy[k], rel=1e-9, abs=1e-15), k
-
-
-def test_clump_checkpoint_resumes_with_another_rank_count(tmp_path_factory):
-    """A clumped pile written by size − 1 ranks (1: the serial engine), resumed by all,
-    continues bit-identically to the uninterrupted serial run."""
-    path = COMM.bcast(str(tmp_path_factory.mktemp("ckpt") / "clumps.npz") if COMM.rank == 0 else None)
-    writers = COMM.Split(0 if COMM.rank < COMM.size - 1 else MPI.UNDEFINED, COMM.rank)
-    serial = clump_pile_engine()
-    serial.run(800)
-    if writers != MPI.COMM_NULL:
-        first = clump_pile_engine(comm=writers if writers.size > 1 else None)
-        first.run(800)
-        if writers.size > 1 or writers.rank == 0:
-            first.save_checkpoint(path)
-        writers.Free()
-    COMM.Barrier()
-    resumed = Engine.load_checkpoint(path, comm=COMM)
-    serial.run(700)
-    resumed.run(700)
-    assert_identical(clump_snapshot(serial), clump_snapshot(resumed))
-    assert resumed.energy()["total"] == pytest.approx(serial.energy()["total"], rel=1e-9)
 
 
 def test_clump_diagnostics_count_each_grain_once_on_any_rank_count():
