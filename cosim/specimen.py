@@ -169,15 +169,18 @@ def read_lab_inputs(case, case_path, length, width):
     return {"packing": packing}, float(radii.min())
 
 
-def check_grain_time_step(case, case_path, mats, sand, radius, shapes=None):
+def check_grain_time_step(case, case_path, mats, sand, radius, shapes=None, packing=None):
     """A given ``time.dt`` against the critical step of the smallest grain of ``radius``
-    (docs/design.md §2.14); with ``shapes``, of each clumped grain of that equal-volume radius
-    (its members by their clump's critical mass)."""
+    (docs/design.md §2.14); with ``shapes``, of each clumped grain of that equal-volume radius,
+    and with a ``packing`` file of clumps, of each of its clumps (their members by their clump's
+    critical mass)."""
     if case.time.dt is None:
         return
     from cosim.apps.dem import check_time_step
     from de_domain import Engine, Particles
-    if shapes is None:
+    if packing is not None and packing.clumps is not None:
+        grains, clumps = packing.clumps.bodies(mats, sand)
+    elif shapes is None:
         grains, clumps = Particles.from_spheres(np.zeros((1, 3)), [radius], np.full(1, sand, np.int32), mats), None
     else:
         grains, clumps = shapes.at_diameter(2.0 * radius).bodies(mats, sand)

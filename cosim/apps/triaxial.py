@@ -76,7 +76,7 @@ def prepare(case, case_path, out_dir, resume):
         check_resume(case_path, out_dir, TriaxialTest, "triaxial")
     built, r_min = read_lab_inputs(case, case_path, tx.size, tx.size)
     mats, sand, _, _ = materials(case)
-    check_grain_time_step(case, case_path, mats, sand, r_min, built.get("shapes"))
+    check_grain_time_step(case, case_path, mats, sand, r_min, built.get("shapes"), built.get("packing"))
     return built
 
 

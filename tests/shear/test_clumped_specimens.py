@@ -58,3 +58,27 @@ def test_clumps_consolidate_to_rest_and_the_servo_holds_the_normal_stress(shear)
     sheared = series["shear_displacement"] > 1e-4  # past the velocity ramp
     assert np.all(series["shear_stress"][sheared] > 0)
     assert math.isfinite(summary["peak_friction_angle_deg"])
+
+
+def test_a_given_time_step_is_checked_against_the_clumps_of_a_specimen_file(shear, tmp_path, capsys):
+    """``source = "file"`` with a specimen of clumps: a ``time.dt`` its member spheres would take as
+    free spheres but its clumps do not (their critical mass, docs/design.md §2.19) is refused before
+    the run, naming the key; half the clumps' critical step passes."""
+    from de_domain import Engine, Material, Particles
+
+    specimen_file = shear[2] / "specimen.npz"
+    specimen = read_specimen(specimen_file)
+    sand = [Material(density=2650.0, young=5.0e7, friction=0.5)]
+    members = Particles.from_spheres(specimen.positions, specimen.radii, materials=sand)
+    as_spheres = Engine(members, sand).critical_timestep()
+    grains, clumps = specimen.clumps.bodies(sand)
+    as_clumps = Engine(grains, sand, clumps=clumps).critical_timestep()
+    assert as_clumps < 0.9 * as_spheres
+    head, rest = SHEAR_MINI.format(name="ds_file", e=0.75, mu=0.3).split("[specimen]")
+    text = head + f'[specimen]\nsource = "file"\nfile = "{specimen_file}"\n\n[direct_shear]' \
+        + rest.split("[direct_shear]")[1].replace("sample_height = 0.01\n", "")
+    for dt, code in ((0.5 * (as_clumps + as_spheres), 2), (0.4 * as_clumps, 0)):
+        case = tmp_path / f"dt_{code}.toml"
+        case.write_text(text.replace("[time]\n", f"[time]\ndt = {dt!r}\n"))
+        assert main(["check", str(case)]) == code
+        assert ("key 'time.dt'" in capsys.readouterr().err) == (code == 2)
