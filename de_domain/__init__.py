@@ -30,7 +30,7 @@ viscous_damping=0.0, skin=None, comm=None, clumps=None)``
     ``.step()``, ``.run(nsteps)``, ``.time``, ``.step_count``, ``.dt``,
     ``.critical_timestep()``, ``.energy()`` (dict incl. ``residual``),
     ``.contacts()`` (dict of arrays), ``.memory_bytes()``, ``.save_checkpoint(path)``,
-    ``Engine.load_checkpoint(path)``.
+    ``Engine.load_checkpoint(path)``, ``.clumps`` and ``.clump_rows()`` (each local row's clump).
 
 ``de_domain.clumps``: ``ClumpTemplate(centres, radii)`` (mass properties of the union of the
 members, principal frame), ``ClumpTemplate.line(count, aspect_ratio, radius)``,

@@ -24,6 +24,12 @@ owner with its wall and facet contact history, sends every pair history (from th
 rank owning the pair's lower id) to the owners of both particles, re-cuts the slabs
 when the counts per rank are uneven (:func:`de_domain.decomposition.needs_rebalance`),
 sends the new ghosts and rebuilds the lists. Energy books are summed over ranks in rank order.
+
+Clumps (docs/design.md §2.19): their members are particles like any other; every rank holds
+every clump, advances those it owns a member of, and gets the loads of their members on other
+ranks each step (:meth:`Domain.share_member_loads`, between the contacts and the clumps' update
+of :meth:`Engine.step_on_copies`); each clump's state goes from the one rank that books it to all
+at rebuilds and at the end of a run (:func:`sync_clumps`; :func:`share_clumps` chooses).
 """
 from __future__ import annotations
 
@@ -410,7 +416,6 @@ def reduce_books(engine, books):
     total = sum_in_rank_order(comm, books)
     total[BOOK_INITIALISED] = comm.allreduce(books[BOOK_INITIALISED], op=MPI.MAX)
     return total
-
 
 
 def share_clumps(engine):
