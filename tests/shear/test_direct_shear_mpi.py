@@ -58,3 +58,20 @@ def test_two_ranks_shear_the_one_rank_specimen_bit_for_bit(tmp_path):
     # the shear band from the grains gathered on rank 0: the same numbers
     bands = [json.loads((tmp_path / run / "summary.json").read_text())["shear_band"] for run in ("one", "two")]
     assert bands[0] == bands[1] and len(bands[0]) == 2
+
+
+def test_two_ranks_shear_a_clumped_specimen_as_one_rank_bit_for_bit(tmp_path):
+    """Two-sphere grains (radius expansion; clumps straddle the ranks' slabs): the specimen with its
+    clumps and every exact CSV column are the one-rank run's."""
+    case = mini_case(tmp_path)
+    case.write_text(case.read_text().replace("[specimen]\n", '[specimen]\ngrains = "clumps"\n'
+                                             'method = "radius_expansion"\n')
+                    + "\n[[dem.clumps]]\nmembers = [[-0.25, 0.0, 0.0, 1.0], [0.25, 0.0, 0.0, 1.0]]\n")
+    one, _ = shear(case, tmp_path / "one", 1)
+    two, out = shear(case, tmp_path / "two", 2)
+    assert "DEM on 2 MPI ranks" in out and "clumped grains" in out
+    for name in ("positions", "radii", "clump_centres", "clump_orientations"):
+        with np.load(tmp_path / "one" / "specimen.npz") as a, np.load(tmp_path / "two" / "specimen.npz") as b:
+            assert np.array_equal(a[name], b[name]), name
+    for key in EXACT:
+        assert one[key] == two[key], key
