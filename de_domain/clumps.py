@@ -293,6 +293,10 @@ class Clumps:
                      moments=moments, force=np.zeros((nc, 3)), torque=np.zeros((nc, 3)), sphere_mass=sphere_mass)
         return members, clumps
 
+    def clump_of_members(self):
+        """The clump of each member, in template order (m,)."""
+        return np.repeat(np.arange(self.count), np.diff(self.member_start))
+
     def critical_mass(self, radius):
         """Each particle's mass for the critical time step (docs/design.md §2.19), given every
         particle's ``radius``: a member's is the smaller of its mass as a sphere of its own and
@@ -301,7 +305,7 @@ class Clumps:
         a clump that a tangential force at its far end turns more easily, and whose members carry
         more contacts together. Other particles: ``sphere_mass``."""
         count = np.diff(self.member_start)
-        owner = np.repeat(np.arange(self.count), count)
+        owner = self.clump_of_members()
         reach = np.zeros(self.count)
         np.maximum.at(reach, owner, np.linalg.norm(self.member_body, axis=1) + radius[self.member_index])
         rotational = np.min(self.moments, axis=1) / (0.4 * reach**2 * count)

@@ -89,11 +89,6 @@ def _member_values(engine, values):
     return out if _domain(engine) is None else _rank_sums(engine, out)
 
 
-def _clump_of_members(clumps):
-    """The clump of each member, in template order."""
-    return np.repeat(np.arange(clumps.count), np.diff(clumps.member_start))
-
-
 def kinetic_energy(engine):
     """Σ ½ m v² + ½ I ω² over owned free spheres and Σ ½ M v² + ½ ω·L over clumps (current
     half-step velocities); a distributed engine sums over its ranks (collective)."""
@@ -162,7 +157,7 @@ def coordination_number(engine, region=None, include_walls=False):
     if clumps.count:  # per grain: the free spheres, then the clumps (their members' contacts summed)
         every = np.zeros(p.n)
         every[mine] = counts
-        per_clump = np.bincount(_clump_of_members(clumps), _member_values(engine, every), clumps.count)
+        per_clump = np.bincount(clumps.clump_of_members(), _member_values(engine, every), clumps.count)
         free = _free_spheres(engine)[mine]
         if _clumps_here(engine):
             counts = np.concatenate([counts[free], per_clump])
@@ -222,7 +217,7 @@ def _solid_volume(engine, region):
         return spheres_solid_volume(p.pos[mine], p.radius[mine], region)
     # members weighted by their clump's union volume over its members' summed volume (module docstring)
     member_volume = _member_values(engine, 4.0 / 3.0 * np.pi * p.radius**3)
-    ratio = clump_volumes(engine) / np.bincount(_clump_of_members(clumps), member_volume, clumps.count)
+    ratio = clump_volumes(engine) / np.bincount(clumps.clump_of_members(), member_volume, clumps.count)
     member_of = engine.clump_rows()[0]
     weight = np.ones(p.n)
     members = member_of >= 0

@@ -429,7 +429,7 @@ def share_clumps(engine):
     domain = engine.domain
     comm = domain.comm
     _, member_row = engine.clump_rows()
-    clump_of = np.repeat(np.arange(c.count), np.diff(c.member_start))
+    clump_of = c.clump_of_members()
     held = np.zeros(c.count, np.bool_)
     held[clump_of[member_row >= 0]] = True
     holders = held.astype(np.int32)
