@@ -23,7 +23,7 @@ memory per particle including ghosts (``Engine.memory_bytes()`` summed over the
 ranks, / N); then the set-up (bed loaded and tiled, ``Engine`` made and, at 2 ranks,
 distributed), the first step (the first list build and the kernels loaded), the mean
 list build inside the timed steps (rank 0's), and one ParaView frame
-(:func:`de_domain.io.write_frame`, gathered to rank 0 when distributed): seconds and MB.
+(:func:`de_domain.io.write_frame`; distributed: one piece a rank and a ``.pvtu``): seconds and MB.
 The 1,000,000 bed (the 20k bed tiled 10 × 5) is not square: LIGGGHTS's deck is not run on it.
 The machine's load average is printed before and after.
 """
@@ -88,7 +88,7 @@ def worker(n, steps, threads):
         tf = time.perf_counter()
         paths = write_frame(directory, engine, 0)
         frame = time.perf_counter() - tf
-        frame_bytes = sum(Path(p).stat().st_size for p in paths) if comm.rank == 0 else 0
+        frame_bytes = sum(p.stat().st_size for p in Path(paths[0]).parent.iterdir()) if comm.rank == 0 else 0
         comm.Barrier()
     memory = comm.allreduce(sum(engine.memory_bytes().values()))
     domain = engine.domain

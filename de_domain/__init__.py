@@ -46,8 +46,9 @@ shapes=GrainShapes(templates, shares))`` makes a specimen of clumped grains.
 ``love_weber_stress`` with ``BoxRegion(lo, hi)`` / ``SphereRegion(center, radius)``, ``grain_radii``;
 a clump counts as one grain.
 
-``de_domain.io``: ``write_particles_vtu(path, particles, clump=None)``, ``write_facets_vtu(path, mesh)``,
-``write_frame(directory, engine, step)``.
+``de_domain.io``: ``write_particles_vtu(path, particles, clump=None, ids=None)``, ``write_facets_vtu(path, mesh)``,
+``write_frame(directory, engine, step)`` (distributed: a piece a rank and a ``.pvtu``),
+``read_frame(path)`` (a ``.vtu`` or ``.pvtu`` back in global-id order).
 
 Performance notes: ``Engine.run(n)`` is one compiled loop (``de_domain.fused``) with
 two parallel regions per step that returns to Python only to rebuild the Verlet

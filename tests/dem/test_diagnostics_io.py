@@ -87,3 +87,38 @@ def test_stl_and_gmsh_loaders_merge_vertices(tmp_path):
     tagged.write(tmp_path / "m.msh", file_format="gmsh22", binary=False)
     mesh = FacetMesh.from_gmsh(tmp_path / "m.msh", physical=7)
     assert mesh.triangles.shape == (2, 3) and sorted(mesh.source_nodes.tolist()) == [0, 1, 2, 3]
+
+
+def test_a_frame_in_pieces_opens_in_vtk_as_one_dataset(tmp_path):
+    """Two pieces and the ``.pvtu`` naming them (what each rank and the root write under MPI):
+    read by :func:`de_domain.io.read_frame` in global-id order, and by VTK's own parallel reader
+    (ParaView's; where ``python3-vtk9`` is installed) as one grid with every field."""
+    from de_domain.io import particle_fields, read_frame, write_pvtu
+
+    engine = engine_of([[0.0, 0.0, 0.0], [3 * R, 0.0, 0.0], [6 * R, 0.0, 0.0]])
+    p = engine.particles
+    p.vel[:] = np.arange(9.0).reshape(3, 3)
+    ids = np.array([2, 0, 1])  # the rows' global ids
+    halves = [p.take(np.array([0])), p.take(np.array([1, 2]))]
+    pieces = []
+    for k, (half, half_ids) in enumerate(zip(halves, (ids[:1], ids[1:]), strict=True)):
+        points, fields = particle_fields(half, half_ids, clump=np.full(half.n, -1))
+        pieces.append(f"piece_{k}.vtu")
+        meshio.Mesh(points, [("vertex", np.arange(len(points)).reshape(-1, 1))], point_data=fields).write(
+            tmp_path / pieces[-1], file_format="vtu", binary=True, compression=None)
+    path = write_pvtu(tmp_path / "frame.pvtu", pieces, fields)
+    points, back = read_frame(path)
+    np.testing.assert_array_equal(back["id"], [0, 1, 2])
+    np.testing.assert_array_equal(points, p.pos[[1, 2, 0]])
+    np.testing.assert_array_equal(back["velocity"], p.vel[[1, 2, 0]])
+    vtk = pytest.importorskip("vtk")
+    from vtk.util.numpy_support import vtk_to_numpy
+    reader = vtk.vtkXMLPUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+    assert grid.GetNumberOfPoints() == 3
+    data = grid.GetPointData()
+    assert sorted(data.GetArrayName(k) for k in range(data.GetNumberOfArrays())) == sorted(fields)
+    np.testing.assert_array_equal(vtk_to_numpy(data.GetArray("id")), [2, 0, 1])
+    np.testing.assert_array_equal(vtk_to_numpy(data.GetArray("velocity")), p.vel)

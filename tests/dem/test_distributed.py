@@ -327,3 +327,27 @@ def test_clump_diagnostics_count_each_grain_once_on_any_rank_count():
     assert dg.coordination_number(spread) == dg.coordination_number(serial)
     assert dg.coordination_number(spread, box, include_walls=True) == \
         dg.coordination_number(serial, box, include_walls=True)
+
+
+@pytest.mark.parametrize("grains", ["spheres", "clumps"])
+def test_a_frame_in_pieces_reads_back_as_the_serial_frame(tmp_path_factory, grains):
+    """Each rank writes its owned particles as one piece, the root the ``.pvtu`` naming them:
+    read back in global-id order, the points and every field equal the serial frame's, each grain
+    once (and each member's clump)."""
+    from de_domain.io import read_frame, write_frame
+
+    build = {"spheres": loose_pile, "clumps": clump_pile_engine}[grains]
+    folder = COMM.bcast(str(tmp_path_factory.mktemp("frames")) if COMM.rank == 0 else None)
+    serial, spread = run_side_by_side(lambda comm: build(comm=comm), (300,))
+    paths = write_frame(f"{folder}/spread", spread, 300)
+    assert paths[0].name == ("particles_00000300.pvtu" if COMM.size > 1 else "particles_00000300.vtu")
+    if COMM.rank == 0:
+        points, fields = read_frame(write_frame(f"{folder}/serial", serial, 300)[0])
+        spread_points, spread_fields = read_frame(paths[0])
+        np.testing.assert_array_equal(points, spread_points)
+        assert fields.keys() == spread_fields.keys() and ("clump" in fields) == (grains == "clumps")
+        for name in fields:
+            np.testing.assert_array_equal(fields[name], spread_fields[name])
+        np.testing.assert_array_equal(fields["id"], np.arange(serial.particles.n))
+        if COMM.size > 1:
+            assert len(list(paths[0].parent.glob("particles_00000300_*.vtu"))) == COMM.size
