@@ -106,6 +106,19 @@ def kinetic_energy(engine):
     return float(translational + rotational)
 
 
+def linear_momentum(engine):
+    """Σ m v over owned free spheres and Σ M v over clumps (current half-step velocities;
+    a clump's members carry its mass for their contacts' dashpots, so they are not counted),
+    a (3,) array in N s; a distributed engine sums over its ranks in rank order (collective)."""
+    p = engine.particles
+    mine = _free_spheres(engine)
+    total = np.sum(p.mass[mine, None] * p.vel[mine], axis=0)
+    c = engine.clumps
+    if c.count and _clumps_here(engine):
+        total = total + np.sum(c.mass[:, None] * c.vel, axis=0)
+    return _rank_sums(engine, total)
+
+
 def _owned_contacts(engine, c):
     """Masks of the contacts this rank counts: sphere pairs whose lower id ``i`` it owns
     (a pair straddling two ranks is listed on both), wall and facet contacts of its

@@ -47,6 +47,7 @@ from cosim.outputs import (
     write_run_metadata,
 )
 from de_domain.comm import sum_in_rank_order
+from de_domain.diagnostics import linear_momentum
 
 PROGRESS_CHUNK = 50  # FE steps between checks of the progress line (on one rank: in one compiled call)
 
@@ -252,14 +253,12 @@ def coupled_step(solid, engine, interface, subcycles):
 
 
 def momentum(solid, engine, interface):
-    """Linear momentum (N s) of the FE nodes, of the particles and of the impulse in transit
-    (each summed over the ranks that hold a part of it)."""
+    """Linear momentum (N s) of the FE nodes, of the grains (spheres and clumps,
+    :func:`de_domain.diagnostics.linear_momentum`) and of the impulse in transit (each summed over
+    the ranks that hold a part of it)."""
     owned = slice(0, solid.n_owned_nodes)
     fe = sum_in_rank_order(solid.comm, np.sum(solid.mass.reshape(-1, 3)[owned] * solid.velocity[owned], axis=0))
-    p = engine.particles
-    mine = p.owned
-    de = sum_in_rank_order(mpi_comm(), np.sum(p.mass[mine, None] * p.vel[mine], axis=0))
-    return fe, de, interface.pending_impulse()
+    return fe, linear_momentum(engine), interface.pending_impulse()
 
 
 def record(solid, engine, interface, series, frames, out_dir, vtk):
