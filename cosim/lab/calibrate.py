@@ -18,9 +18,12 @@ four parameters of the sand material with bounds. The search, step by step:
    before it begins.
 4. **Search.** Nelder–Mead (scipy.optimize.minimize; derivative-free, and it tolerates the
    noise of a chaotic simulation) runs on the parameters scaled to [0, 1] within the bounds.
-   It starts from a simplex around the centre that spans 30 % of each range. The search
-   stops when the targets are reached, when ``budget`` evaluations are spent, or when the
-   simplex has shrunk to 0.1 % of the ranges.
+   It starts from a simplex around the centre that spans 30 % of each range. A point the
+   simplex puts past a bound is reflected back inside (s → 1 − |1 − (s mod 2)|): clipped to
+   the bound, the simplex collapsed onto it and stalled there short of a target just inside.
+   A parameter set met again is not run again and is not another evaluation. The search
+   stops when the targets are reached, when ``budget`` evaluations (distinct parameter sets)
+   are spent, or when the simplex has shrunk to 0.1 % of the ranges.
 5. **Resumable.** Every evaluation is a row of ``evaluations.csv``. Rerun, the search
    takes the same steps (Nelder–Mead is deterministic for given values) and reads finished
    evaluations from the CSV instead of running them again.
@@ -135,8 +138,12 @@ def calibrate(spec, evaluate, log_path, progress=say):
     evaluations = []
     t_start = time.perf_counter()
 
-    def run(u):
-        x = tuple(float(v) for v in lower + np.clip(u, 0.0, 1.0) * (upper - lower))
+    seen = {}  # parameter set -> its misfit, in this search
+
+    def run(s):
+        x = tuple(float(v) for v in lower + reflected(s) * (upper - lower))
+        if x in seen:
+            return seen[x]
         parameters = dict(zip(names, x, strict=True))
         index = len(evaluations) + 1
         if x in log.memo:
@@ -149,6 +156,7 @@ def calibrate(spec, evaluate, log_path, progress=say):
         e = Evaluation(index, parameters, achieved, misfit(achieved, targets),
                        all(abs(a - t.value) <= t.tolerance for a, t in zip(achieved, targets, strict=True)), clock)
         evaluations.append(e)
+        seen[x] = e.misfit
         if x not in log.memo:
             log.append(e)
             log.memo[x] = achieved, clock
@@ -168,7 +176,7 @@ def calibrate(spec, evaluate, log_path, progress=say):
             raise _Stop("unreachable", "; ".join(unreachable))
         centre = np.full(n, 0.5)
         simplex = np.vstack([centre] + [centre + SIMPLEX_SPAN * np.eye(n)[i] for i in range(n)])
-        minimize(run, centre, method="Nelder-Mead", bounds=[(0.0, 1.0)] * n,
+        minimize(run, centre, method="Nelder-Mead",
                  options={"initial_simplex": simplex, "maxfev": 10 * spec.budget, "xatol": STALL,
                           "fatol": 0.0})
         outcome = Calibration("stalled", "the search stalled (its simplex shrank to 0.1 % of the ranges) before "
@@ -177,6 +185,11 @@ def calibrate(spec, evaluate, log_path, progress=say):
     except _Stop as stop:
         outcome = Calibration(stop.status, stop.message, evaluations)
     return outcome
+
+
+def reflected(s):
+    """A point of the unbounded search folded into [0, 1] by reflection at the bounds."""
+    return 1.0 - np.abs(1.0 - np.mod(s, 2.0))
 
 
 def _unreachable(targets, low, high):

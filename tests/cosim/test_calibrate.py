@@ -85,6 +85,20 @@ def test_a_target_beyond_the_bounds_is_reported_after_the_two_corners(tmp_path):
     assert "peak_friction_angle_deg = 60" in outcome.message and "24 ... 44" in outcome.message
 
 
+def test_a_target_just_inside_a_bound_is_reached_and_no_parameter_set_is_run_twice(tmp_path):
+    """φ = 25° is μ = 0.25, 5 % of the range above the lower bound 0.2: the simplex steps past the
+    bound on its way (clipped there, it collapsed onto μ = 0.2 and stalled, with the bound run
+    again and counted as evaluations 6, 7, 8); reflected back inside, it reaches the target, and
+    every evaluation is a new parameter set."""
+    calls = []
+    outcome = calibrate(spec([("peak_friction_angle_deg", 25.0, 0.1)], [("friction", 0.2, 1.2)], budget=12),
+                        surrogate(calls), tmp_path / "e.csv", progress=lambda s: None)
+    assert outcome.status == "reached"
+    assert outcome.best.parameters["friction"] == pytest.approx(0.25, abs=0.005)
+    sets = [tuple(e.parameters.values()) for e in outcome.evaluations]
+    assert len(set(sets)) == len(sets) == len(calls)
+
+
 def test_the_budget_ends_the_search(tmp_path):
     outcome = calibrate(spec([("peak_friction_angle_deg", 37.3, 1e-9)], [("friction", 0.2, 1.2)], budget=6),
                         surrogate(), tmp_path / "e.csv", progress=lambda s: None)
