@@ -19,7 +19,7 @@ four parameters of the sand material with bounds. The search, step by step:
 4. **Search.** Nelder–Mead (scipy.optimize.minimize; derivative-free, and it tolerates the
    noise of a chaotic simulation) runs on the parameters scaled to [0, 1] within the bounds.
    It starts from a simplex around the centre that spans 30 % of each range. A point the
-   simplex puts past a bound is reflected back inside (s → 1 − |1 − (s mod 2)|): clipped to
+   simplex puts past a bound is reflected back inside (``s → 1 − abs(1 − (s mod 2))``): clipped to
    the bound, the simplex collapsed onto it and stalled there short of a target just inside.
    A parameter set met again is not run again and is not another evaluation. The search
    stops when the targets are reached, when ``budget`` evaluations (distinct parameter sets)
