@@ -37,11 +37,15 @@ def particle_fields(particles, ids=None, clump=None):
     return particles.pos[rows], fields
 
 
+def _write_points(path, points, fields):
+    """Points as VTK vertices with their ``fields``."""
+    return _write_vtu(path, points, ("vertex", np.arange(len(points)).reshape(-1, 1)), fields)
+
+
 def write_particles_vtu(path, particles, clump=None, ids=None):
     """Spheres as VTK vertices (the owned particles only: ghost copies are left out) with the
     fields of :func:`particle_fields`: colour by ``clump``, or threshold it, to see the grains."""
-    points, fields = particle_fields(particles, ids, clump)
-    return _write_vtu(path, points, ("vertex", np.arange(len(points)).reshape(-1, 1)), fields)
+    return _write_points(path, *particle_fields(particles, ids, clump))
 
 
 def _vtk_type(dtype):
@@ -116,7 +120,7 @@ def write_frame(directory, engine, step):
         directory.mkdir(parents=True, exist_ok=True)
     runner.barrier()  # the folder exists
     points, fields = particle_fields(engine.particles, domain.ids, clump_rows)
-    _write_vtu(directory / pieces[rank], points, ("vertex", np.arange(len(points)).reshape(-1, 1)), fields)
+    _write_points(directory / pieces[rank], points, fields)
     particle_path = directory / f"particles_{step:08d}.pvtu"
     if runner.is_root:
         write_pvtu(particle_path, pieces, fields)
