@@ -80,11 +80,9 @@ class Model:
         return total
 
     def grain_weight(self):
-        """Σ m ``|g|`` of the grains (N), over all ranks."""
-        from de_domain.comm import sum_in_rank_order
-        p = self.engine.particles
-        mass = np.array([np.sum(p.mass[p.owned])])
-        return float(sum_in_rank_order(mpi_comm(), mass)[0]) * float(np.linalg.norm(self.engine.gravity))
+        """Σ m ``|g|`` of the grains (N; a clump's mass once), over all ranks (collective)."""
+        from de_domain.diagnostics import total_mass
+        return total_mass(self.engine) * float(np.linalg.norm(self.engine.gravity))
 
 
 def unbalanced(model):

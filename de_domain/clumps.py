@@ -375,6 +375,10 @@ class ClumpPacking:
         return replace(self, centres=c.pos.copy(), orientations=c.quat.copy(), velocities=c.vel.copy(),
                        angular_velocities=c.angular_velocity())
 
+    def resized(self, factor):
+        """These clumps enlarged ``factor`` times about their centres."""
+        return replace(self, scale=self.scale * factor)
+
     def joined(self, other):
         """This packing followed by ``other`` (the same templates)."""
         both = lambda name: np.concatenate([getattr(self, name), getattr(other, name)])  # noqa: E731
@@ -414,13 +418,24 @@ def clump_cloud(templates, template_of, diameters, lo, hi, seed, rng):
     (uniform unit quaternions drawn from ``rng``), at rest. Raises ValueError if they do not fit."""
     from .packing import random_cloud
     template_of = np.asarray(template_of, np.int64)
-    scale = 0.5 * np.asarray(diameters, float) / np.array([t.equivalent_radius() for t in templates])[template_of]
+    scale = scales_to_diameters(templates, template_of, diameters)
     enclosing = scale * np.array([t.reach() for t in templates])[template_of]
     order = np.argsort(enclosing, kind="stable")[::-1]  # random_cloud places the largest first
     centres, _ = random_cloud(enclosing[order], lo, hi, seed=seed)
-    orientations = rng.normal(size=(template_of.size, 4))
-    return ClumpPacking(templates, template_of[order], scale[order], centres,
-                        orientations / np.linalg.norm(orientations, axis=1)[:, None])
+    orientations = random_orientations(template_of.size, rng)
+    return ClumpPacking(templates, template_of[order], scale[order], centres, orientations)
+
+
+def scales_to_diameters(templates, template_of, diameters):
+    """The enlargement of each clump ``templates[template_of[c]]`` to the equal-volume ``diameters[c]``."""
+    return 0.5 * np.asarray(diameters, float) / np.array([t.equivalent_radius() for t in templates])[template_of]
+
+
+def random_orientations(count, rng):
+    """``count`` unit quaternions uniform over the rotations (normalised 4-D normal draws,
+    Marsaglia 1972), (count, 4)."""
+    q = rng.normal(size=(count, 4))
+    return q / np.linalg.norm(q, axis=1)[:, None]
 
 
 @njit(cache=True)

@@ -257,6 +257,10 @@ class SpherePacking:
         return replace(self, centres=grains.pos.copy(), velocities=grains.vel.copy(),
                        angular_velocities=grains.angvel.copy())
 
+    def resized(self, factor):
+        """These spheres with their radii × ``factor``."""
+        return replace(self, radii=self.radii * factor)
+
     def joined(self, other):
         both = lambda name: np.concatenate([getattr(self, name), getattr(other, name)])  # noqa: E731
         return SpherePacking(*(both(k) for k in ("centres", "radii", "velocities", "angular_velocities")))

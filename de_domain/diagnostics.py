@@ -106,6 +106,18 @@ def kinetic_energy(engine):
     return float(translational + rotational)
 
 
+def total_mass(engine):
+    """Σ m over owned free spheres and Σ M over clumps (a clump's members carry its mass for
+    their contacts' dashpots, so they are not counted), in kg; a distributed engine sums over
+    its ranks in rank order (collective)."""
+    p = engine.particles
+    total = np.array([np.sum(p.mass[_free_spheres(engine)])])
+    c = engine.clumps
+    if c.count and _clumps_here(engine):
+        total = total + np.sum(c.mass)
+    return float(_rank_sums(engine, total)[0])
+
+
 def linear_momentum(engine):
     """Σ m v over owned free spheres and Σ M v over clumps (current half-step velocities;
     a clump's members carry its mass for their contacts' dashpots, so they are not counted),

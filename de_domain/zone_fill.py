@@ -24,15 +24,16 @@ densities.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from de_domain.clumps import ClumpPacking, random_orientations, scales_to_diameters
 from de_domain.deposition import (
     GenerationSettings,
+    SpherePacking,
     _critical_dt_all,
     _materials,
-    _motion,
     _start_friction,
     _unbalanced,
 )
@@ -59,6 +60,7 @@ class FilledZone:
     steps: int
     log: list = field(default_factory=list)
     bulk_void_ratio: float = None  # :func:`bulk_void_ratio`, one d_max from the faces; None if nothing is that far
+    clumps: object = None  # clumped grains: their :class:`~de_domain.clumps.ClumpPacking` (the spheres are its members)
 
 
 def points_in_tets(tets, count, rng):
@@ -212,38 +214,20 @@ def facet_mesh(triangles, material):
 
 
 def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None, attempts=400,
-              increments=40, steps_per_increment=100) -> FilledZone:
+              increments=40, steps_per_increment=100, shapes=None) -> FilledZone:
     """Grains of ``diameters`` (largest first or not) filling the tetrahedra ``tets`` inside
     ``walls`` (:class:`ContainerWall`), by the steps of the module docstring. ``s`` supplies
     the grain and generation parameters (its box sizes are not used; its ``plate`` material
     is not used either: each wall has its own). ``comm``: the DEM spread over its ranks
-    (collective). Raises ValueError when the cloud does not fit."""
-    radii = radii_full = np.sort(0.5 * np.asarray(diameters, float))[::-1]
+    (collective). ``shapes`` (:class:`~de_domain.deposition.GrainShapes`): clumped grains, each
+    of a template drawn by share and enlarged to its diameter (equal volume), in a random
+    orientation; its enclosing sphere is placed as a sphere is, and it grows about its centre.
+    Raises ValueError when the cloud does not fit."""
+    grains, shrink = _placed_small(tets, walls, diameters, s, attempts, shapes)
     volume = tets_volume(tets)
-    solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
-    shrink = min(1.0, (s.cloud_solid_fraction * volume / solid) ** (1.0 / 3.0))
-    small = radii * shrink
-    rng = np.random.default_rng(s.seed)
-    faces = np.concatenate([w.triangles for w in walls])
-    spacing = 0.5 * float(small.min())
-    distance = distance_to(faces, tets, spacing)
-    lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
-    inserter = SphereInserter(small, lo, hi)
-    for start in range(0, len(radii), CANDIDATE_BLOCK):  # drawn and placed a block of grains at a time
-        block = slice(start, min(start + CANDIDATE_BLOCK, len(radii)))
-        drawn = points_in_tets(tets, (block.stop - start) * attempts, rng).reshape(-1, attempts, 3)
-        near = float(small[block].max()) + spacing  # only whether a face is nearer than this matters
-        blocked = distance(drawn.reshape(-1, 3), upto=near).reshape(-1, attempts) < small[block, None] + spacing
-        if inserter.add(_free_first(drawn, blocked)) < block.stop:
-            break
-    pos, placed = inserter.pos[:inserter.placed], inserter.placed
-    if placed < len(radii):
-        raise ValueError(f"could place only {placed} of {len(radii)} shrunk grains in the zone (solid fraction "
-                         f"{s.cloud_solid_fraction}): the zone is too thin for its grains, or the target e too low")
     materials = _container_materials(s, walls)
-    dt = s.safety_factor * _critical_dt_all(s, diameters)
+    dt = s.safety_factor * _critical_dt_all(s, diameters, shapes)
     friction = _start_friction(s)
-    vel, angvel = np.zeros_like(pos), np.zeros_like(pos)
     steps, messages = 0, []
 
     def say(text):
@@ -258,87 +242,121 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
             held_planes += [(1 + k, plane.point.copy(), plane.normal.copy()) for plane in these]
             held_facets += [(1 + k, rest)] if len(rest) else []
 
-    def engine_for(pos, radii_now, vel, angvel, gravity, with_lid):
-        from de_domain import Engine, Particles, PlaneWall
+    def engine_for(grains, gravity, with_lid, size=1.0):
+        from de_domain import Engine, PlaneWall
         mats = materials(friction)
-        p = Particles.from_spheres(pos, radii_now, np.zeros(len(radii_now), np.int32), mats, velocities=vel)
-        p.angvel[:] = angvel
+        particles, clumps = grains.bodies(mats, 0, size)
         facets = [facet_mesh(w.triangles, 1 + k) for k, w in enumerate(walls) if w.lid and with_lid]  # lid first
         facets += [facet_mesh(rest, k) for k, rest in held_facets]
         planes = [PlaneWall(point, normal, k) for k, point, normal in held_planes]
-        return Engine(p, mats, walls=planes, facets=facets, contact_law=s.contact_law,
+        return Engine(particles, mats, walls=planes, facets=facets, contact_law=s.contact_law,
                       gravity=tuple(np.asarray(gravity, float) / s.density_scale), dt=dt,
-                      safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm)
+                      safety_factor=s.safety_factor, local_damping=s.local_damping, comm=comm, clumps=clumps)
 
     for k in range(1, increments + 1):
-        engine = engine_for(pos, radii * (shrink + (1.0 - shrink) * k / increments), vel, angvel, (0, 0, 0), True)
+        engine = engine_for(grains, (0, 0, 0), True, shrink + (1.0 - shrink) * k / increments)
         engine.run(steps_per_increment)
         steps += steps_per_increment
-        pos, vel, angvel = _motion(engine)
+        grains = grains.moved(engine)
     lid = [w for w in walls if w.lid]
     lid_normal, lid_area = _outward(lid, tets.reshape(-1, 3).mean(axis=0))
     if not lid:  # a closed zone: no lid to lift, so let the expansion's locked-in stress go here
-        engine = engine_for(pos, radii, vel, angvel, (0.0, 0.0, 0.0), False)
-        radii, pos, vel, angvel, used, stress = _release_closed(engine, radii, volume, s, engine_for)
-        solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
+        engine = engine_for(grains, (0.0, 0.0, 0.0), False)
+        grains, factor, used, stress = _release_closed(engine, grains, volume, s, engine_for)
         steps += used
-        say(f"zone fill (closed zone): the grains shrunk by {100.0 * (1.0 - radii[0] / radii_full[0]):.2f} % to let "
+        say(f"zone fill (closed zone): the grains shrunk by {100.0 * (1.0 - factor):.2f} % to let "
             f"the expansion's stress go: mean stress {stress:.3g} Pa (to at most seat_stress = {s.seat_stress:.3g} "
             f"Pa, shrinking {100.0 * (1.0 - RELEASE_LIMIT):.0f} % at most)")
     for label, gravity in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
-        engine = engine_for(pos, radii, vel, angvel, gravity, True)
+        engine = engine_for(grains, gravity, True)
         loose = (lambda e: _lid_stress(e, walls, lid_normal, lid_area) < s.seat_stress) if label == "expanded" else None
         steps += _rest(engine, s, loose)  # not jammed: a loose gas has no equilibrium to reach without gravity
         say(f"zone fill ({label}): unbalanced force {_unbalanced(engine):.3g}, lid stress "
             f"{_lid_stress(engine, walls, lid_normal, lid_area):.3g} Pa")
-        pos, vel, angvel = _motion(engine)
+        grains = grains.moved(engine)
     lift = 0.0  # how far the lid moved out along its normal (m)
     if lid and s.release_stress is not None:
-        engine = engine_for(pos, radii, vel, angvel, s.gravity, True)
-        chunk = max(1, s.check_every // 5)
-        speed = 0.1 * s.plate_velocity
-        engine.run(chunk)
-        lifting = 0  # this phase's steps, capped as every phase's
-
-        def held():
-            return _lid_stress(engine, walls, lid_normal, lid_area) > s.release_stress
-
-        while True:
-            # lift until the lid is released, then let the grains come to rest against it; again
-            # while it holds them: a lid moving away from a jammed packing reads released before
-            # the grains have caught up with it
-            _set_lid_velocity(engine, walls, speed * lid_normal)
-            while held() and lifting < s.max_steps_per_layer:
-                engine.run(chunk)
-                lifting += chunk
-                lift += speed * engine.dt * chunk
-            _set_lid_velocity(engine, walls, np.zeros(3))
-            lifting += _rest(engine, s)
-            if not held() or lifting >= s.max_steps_per_layer:
-                break
-        steps += lifting
+        engine = engine_for(grains, s.gravity, True)
+        lift, used = _lift_lid(engine, walls, lid_normal, lid_area, s)
+        steps += used
         say(f"zone fill: lid moved out {lift * 1e3:.3f} mm, where it carries "
             f"{_lid_stress(engine, walls, lid_normal, lid_area):.3g} Pa (release to <= {s.release_stress:.3g} Pa)")
-        pos, vel, angvel = _motion(engine)
-    engine = engine_for(pos, radii, vel, angvel, s.gravity, False)
+        grains = grains.moved(engine)
+    engine = engine_for(grains, s.gravity, False)
     steps += _rest(engine, s)
-    pos, _, _ = _motion(engine)
+    grains = grains.moved(engine)
+    pos, radii = grains.members()
+    faces = np.concatenate([w.triangles for w in walls])
     lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
     gone = np.any((pos < lo) | (pos > hi + lift + radii.max()), axis=1)
     if gone.any():
         raise ValueError(f"{int(gone.sum())} grains left the zone when its lid was removed: the zone's faces "
                          "do not close it, or the lid could not be lifted to release the packing")
-    inside = np.ones(len(radii), bool)
+    inside = np.ones(len(grains.centres), bool)
     if lid:
         plane = np.concatenate([w.triangles for w in lid]).reshape(-1, 3) @ lid_normal
-        inside = pos @ lid_normal <= plane.max()
-    solid_inside = float(np.sum(4.0 / 3.0 * np.pi * radii[inside] ** 3))
+        inside = grains.centres @ lid_normal <= plane.max()
+    solids = grains.volumes()
+    solid, solid_inside = float(np.sum(solids)), float(np.sum(solids[inside]))
     e = (volume - solid_inside) / solid_inside
-    bulk = bulk_void_ratio(tets, faces, pos, radii, 2.0 * float(radii.max()), np.random.default_rng(s.seed))
-    say(f"zone fill: {len(radii)} grains at rest under gravity, e = {e:.4f} over the zone's volume (the "
+    reach = float(np.max(grains.enclosing_radii()))
+    bulk = bulk_void_ratio(tets, faces, pos, radii, 2.0 * reach, np.random.default_rng(s.seed))
+    say(f"zone fill: {_grains_text(grains)} at rest under gravity, e = {e:.4f} over the zone's volume (the "
         f"{int(inside.sum())} grains with their centre in it; {(volume - solid) / solid:.4f} with all of them), "
         f"{'n/a' if bulk is None else f'{bulk:.4f}'} in its bulk (one d_max from its faces), {steps} steps")
-    return FilledZone(pos, radii.copy(), e, steps, messages, bulk)
+    clumps = None if isinstance(grains, SpherePacking) else replace(grains, velocities=None, angular_velocities=None)
+    return FilledZone(pos.copy(), radii.copy(), e, steps, messages, bulk, clumps)
+
+
+def _grains_text(grains):
+    """'N grains' or 'N clumped grains of M spheres'."""
+    if isinstance(grains, SpherePacking):
+        return f"{len(grains.radii)} grains"
+    return f"{grains.count} clumped grains of {len(grains.members()[1])} spheres"
+
+
+def _placed_small(tets, walls, diameters, s, attempts, shapes):
+    """(the grains, ``shrink``): the grains (:class:`~de_domain.deposition.SpherePacking`, or
+    :class:`~de_domain.clumps.ClumpPacking` with ``shapes``) at full size, largest enclosing
+    sphere first, at the places found for their enclosing spheres shrunk ``shrink`` times to
+    ``s.cloud_solid_fraction`` of the volume by random sequential addition (step 2 of the module
+    docstring)."""
+    diameters = np.sort(np.asarray(diameters, float))[::-1]
+    shape_rng = np.random.default_rng([s.seed, 1])  # the clumps' templates and orientations
+    template_of = None if shapes is None else shapes.draw(len(diameters), shape_rng)
+    enclosing = 0.5 * diameters if shapes is None else 0.5 * diameters * shapes.reach_ratios()[template_of]
+    order = np.argsort(-enclosing, kind="stable")  # the inserter places the largest first
+    enclosing = enclosing[order]
+    volume = tets_volume(tets)
+    solid = float(np.sum(4.0 / 3.0 * np.pi * enclosing**3))
+    shrink = min(1.0, (s.cloud_solid_fraction * volume / solid) ** (1.0 / 3.0))
+    small = enclosing * shrink
+    rng = np.random.default_rng(s.seed)
+    faces = np.concatenate([w.triangles for w in walls])
+    spacing = 0.5 * float(small.min())
+    distance = distance_to(faces, tets, spacing)
+    lo, hi = faces.reshape(-1, 3).min(axis=0), faces.reshape(-1, 3).max(axis=0)
+    inserter = SphereInserter(small, lo, hi)
+    for start in range(0, len(small), CANDIDATE_BLOCK):  # drawn and placed a block of grains at a time
+        block = slice(start, min(start + CANDIDATE_BLOCK, len(small)))
+        drawn = points_in_tets(tets, (block.stop - start) * attempts, rng).reshape(-1, attempts, 3)
+        near = float(small[block].max()) + spacing  # only whether a face is nearer than this matters
+        blocked = distance(drawn.reshape(-1, 3), upto=near).reshape(-1, attempts) < small[block, None] + spacing
+        if inserter.add(_free_first(drawn, blocked)) < block.stop:
+            break
+    if inserter.placed < len(small):
+        raise ValueError(f"could place only {inserter.placed} of {len(small)} shrunk grains in the zone (solid "
+                         f"fraction {s.cloud_solid_fraction}): the zone is too thin for its grains, or the target e "
+                         "too low")
+    centres = inserter.pos[:inserter.placed]
+    if shapes is None:
+        packing = SpherePacking(centres, enclosing)
+    else:
+        template_of = template_of[order]
+        packing = ClumpPacking(shapes.templates, template_of,
+                               scales_to_diameters(shapes.templates, template_of, diameters[order]), centres,
+                               random_orientations(len(order), shape_rng))
+    return packing, shrink
 
 
 class _WholeVolume:
@@ -356,14 +374,14 @@ RELEASE_SHRINK = 0.995  # the grains' radii times this, a step, while a closed z
 RELEASE_LIMIT = 0.95    # ... down to at most this
 
 
-def _release_closed(engine, radii, volume, s, engine_for):
+def _release_closed(engine, grains, volume, s, engine_for):
     """Shrink every grain of a closed zone (no lid to lift) by RELEASE_SHRINK a step, without
     gravity, until the mean stress of its contacts, tr σ / 3 with σ = 1/V Σ f ⊗ l
     (love_weber_stress over the zone's volume, compression +) is at most ``s.seat_stress``: a radius
     expansion inside closed faces ends with the grains pressed together (a closed ring around
     a tunnel lining held overlaps of up to 11 % of a radius, stiff enough cages for a light
-    grain to chatter at the fill's time step). Returns (radii, positions, velocities, angular
-    velocities, steps, the mean stress reached in Pa)."""
+    grain to chatter at the fill's time step). Returns (the grains shrunk and moved, the factor
+    they were shrunk by, steps, the mean stress reached in Pa)."""
     from .diagnostics import love_weber_stress
     factor, steps, region = 1.0, 0, _WholeVolume(volume)
     engine.run(4 * s.check_every)
@@ -374,12 +392,36 @@ def _release_closed(engine, radii, volume, s, engine_for):
 
     while mean_stress(engine) > s.seat_stress and factor * RELEASE_SHRINK >= RELEASE_LIMIT:
         factor *= RELEASE_SHRINK
-        pos, vel, angvel = _motion(engine)
-        engine = engine_for(pos, radii * factor, vel, angvel, (0.0, 0.0, 0.0), False)
+        engine = engine_for(grains.moved(engine), (0.0, 0.0, 0.0), False, factor)
         engine.run(4 * s.check_every)
         steps += 4 * s.check_every
-    pos, vel, angvel = _motion(engine)
-    return radii * factor, pos, vel, angvel, steps, float(mean_stress(engine))
+    return grains.moved(engine).resized(factor), factor, steps, float(mean_stress(engine))
+
+
+def _lift_lid(engine, walls, normal, area, s):
+    """Move the lid out along its outward ``normal`` until it carries at most ``s.release_stress``
+    (step 4 of the module docstring); returns (how far it moved in m, the steps)."""
+    chunk = max(1, s.check_every // 5)
+    speed = 0.1 * s.plate_velocity
+    engine.run(chunk)
+    lift, lifting = 0.0, 0  # this phase's steps, capped as every phase's
+
+    def held():
+        return _lid_stress(engine, walls, normal, area) > s.release_stress
+
+    while True:
+        # lift until the lid is released, then let the grains come to rest against it; again
+        # while it holds them: a lid moving away from a jammed packing reads released before
+        # the grains have caught up with it
+        _set_lid_velocity(engine, walls, speed * normal)
+        while held() and lifting < s.max_steps_per_layer:
+            engine.run(chunk)
+            lifting += chunk
+            lift += speed * engine.dt * chunk
+        _set_lid_velocity(engine, walls, np.zeros(3))
+        lifting += _rest(engine, s)
+        if not held() or lifting >= s.max_steps_per_layer:
+            return lift, lifting + chunk
 
 
 def _free_first(candidates, blocked):

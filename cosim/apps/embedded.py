@@ -82,7 +82,7 @@ def prepare(case, case_path, out_dir, resume):
     GRAINS_ACROSS of the largest grains thick."""
     from cosim.apps import on_root
     from cosim.case.validation import GRAINS_ACROSS
-    from cosim.specimen import curve_of
+    from cosim.specimen import curve_of, grain_shapes
     from de_domain.zone_fill import thickness
     from fe_domain.mesh import MeshError
     from fe_domain.zone_model import GroupError, split_model
@@ -119,31 +119,39 @@ def prepare(case, case_path, out_dir, resume):
         return built
     if case.specimen.source == "file":
         built["packing"] = mpi_comm().bcast(on_root(mpi_comm(), lambda: read_packing(case, case_path, split)), root=0)
-        d_max = 2.0 * float(built["packing"][1].max())
+        d_max = 2.0 * float(np.max(built["packing"].enclosing_radii()))
+        what = "largest grains"
     else:
         built["curve"] = curve_of(case.specimen)
+        built["shapes"] = grain_shapes(case, case_path)
         d_max = float(built["curve"].diameters[-1])
+        if built["shapes"] is not None:  # a clump's length: its enclosing sphere's diameter
+            d_max *= float(np.max(built["shapes"].reach_ratios()))
+        what = "largest grains" if built["shapes"] is None else "largest clumped grains' lengths"
     spacing = 0.1 * d_max  # the estimate's resolution
     across = thickness(split.zone.tets, split.zone.faces, spacing, np.random.default_rng(0),
                        at_least=GRAINS_ACROSS * d_max)
     if across + spacing < GRAINS_ACROSS * d_max:
         raise CaseError(case_path, "embedded.volumes", roles.grains,
                         f"the grain volumes are {across * 1e3:.2f} mm thick at most: at least {GRAINS_ACROSS} of the "
-                        f"largest grains ({GRAINS_ACROSS * d_max * 1e3:.2f} mm) are needed")
+                        f"{what} ({GRAINS_ACROSS * d_max * 1e3:.2f} mm) are needed")
     return built
 
 
 def read_packing(case, case_path, split):
-    """(positions, radii) of ``specimen.file``, in the model's coordinates; every grain's centre
-    must lie in a grain volume, or within its radius of a free surface (a CaseError names the
-    first that does not)."""
+    """The grains of ``specimen.file`` (:class:`~de_domain.deposition.SpherePacking`, or the
+    :class:`~de_domain.clumps.ClumpPacking` of a clumped specimen.npz), at rest in the model's
+    coordinates; every sphere's centre must lie in a grain volume, or within its radius of a
+    free surface (a CaseError names the first that does not)."""
     from cosim.apps.dem import warn_overlaps
     from cosim.case.paths import resolve_path
-    from de_domain.packing import load_packing
+    from cosim.specimen import read_specimen
+    from de_domain.deposition import SpherePacking
     from de_domain.zone_fill import inside_tets
     sp = case.specimen
     try:
-        pos, radii = load_packing(resolve_path(case_path, sp.file))
+        specimen = read_specimen(resolve_path(case_path, sp.file))
+        pos, radii = specimen.positions, specimen.radii
     except Exception as exc:
         raise CaseError(case_path, "specimen.file", sp.file, f"could not read the packing: {exc}") from None
     outside = ~inside_tets(pos, split.zone.tets)
@@ -163,8 +171,10 @@ def read_packing(case, case_path, split):
                         f"({', '.join(Roles.of(case.embedded).grains)}), the first at "
                         f"{np.round(pos[i], 6).tolist()} m: "
                         "a packing is given in the model's coordinates (as the specimen.npz a run writes)")
-    warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
-    return pos, radii
+    if specimen.clumps is None:
+        warn_overlaps(case_path, "specimen.file", sp.file, pos, radii)
+        return SpherePacking(pos, radii)
+    return specimen.clumps
 
 
 def _key_of_group(em, name):
@@ -206,20 +216,28 @@ def is_free_surface(roles, group):
 
 
 def fill(case, built, out_dir, name):
-    """Fill the grain volumes (collective); returns (positions, radii, info) and writes
-    ``specimen.npz``."""
-    from de_domain.deposition import GenerationSettings, diameters_for_solid_volume, solid_volume_for
-    from de_domain.packing import save_packing
+    """Fill the grain volumes (collective); returns (the grains: a
+    :class:`~de_domain.deposition.SpherePacking` or :class:`~de_domain.clumps.ClumpPacking`,
+    info) and writes ``specimen.npz``."""
+    from cosim.specimen import save_specimen
+    from de_domain.deposition import (
+        GenerationSettings,
+        Specimen,
+        SpherePacking,
+        diameters_for_solid_volume,
+        solid_volume_for,
+    )
     from de_domain.zone_fill import fill_zone, tets_volume
     sp, split = case.specimen, built["split"]
     mats, ids = grain_materials(case)
     volume = tets_volume(split.zone.tets)
     if "packing" in built:
-        positions, radii = built["packing"]
-        solid = float(np.sum(4.0 / 3.0 * np.pi * radii**3))
-        say(f"[{name}] grains from {sp.file}: {len(radii)}, e = {(volume - solid) / solid:.4f} over the grain volumes")
-        return positions, radii, {"source": sp.file, "grains": len(radii), "void_ratio": (volume - solid) / solid,
-                                  "zone_volume_m3": volume, "wall_clock_s": 0.0}
+        grains = built["packing"]
+        solids = grains.volumes()
+        e = (volume - float(np.sum(solids))) / float(np.sum(solids))
+        say(f"[{name}] grains from {sp.file}: {len(solids)}, e = {e:.4f} over the grain volumes")
+        return grains, {"source": sp.file, "grains": len(solids), "void_ratio": e, "zone_volume_m3": volume,
+                        "wall_clock_s": 0.0}
     rng = np.random.default_rng(case.case.seed)
     diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, volume), rng)
     sand = mats[ids[sp.deposition_material or case.embedded.sand_material]]  # the grains' material while filled
@@ -240,7 +258,7 @@ def fill(case, built, out_dir, name):
     comm = mpi_comm() if mpi_comm().size > 1 else None
     try:
         filled = fill_zone(split.zone.tets, container(case, split, mats, ids), diameters, settings,
-                           log=lambda text: say(f"[{name}] {text}"), comm=comm)
+                           log=lambda text: say(f"[{name}] {text}"), comm=comm, shapes=built.get("shapes"))
     except ValueError as exc:
         raise RuntimeError(f"[{name}] {exc}") from None
     ok = abs(filled.void_ratio - sp.void_ratio) <= sp.tolerance
@@ -248,29 +266,37 @@ def fill(case, built, out_dir, name):
         f"; {filled.bulk_void_ratio:.4f} in its bulk, one d_max from its faces (spheres pack looser at a face)"
     say(f"[{name}] grains: e = {filled.void_ratio:.4f} over the grain volume (target {sp.void_ratio} ± {sp.tolerance}: "
         f"{'OK' if ok else 'MISSED'}){bulk}")
+    top = float(np.max(filled.positions[:, 2] + filled.radii))
     if is_root():
-        save_packing(out_dir / "specimen.npz", filled.positions, filled.radii, void_ratio=filled.void_ratio)
-    info = {"grains": len(filled.radii), "void_ratio": filled.void_ratio, "void_ratio_bulk": filled.bulk_void_ratio,
+        save_specimen(out_dir / "specimen.npz", Specimen(filled.positions, filled.radii, top, filled.void_ratio,
+                                                         "zone_fill", filled.steps, clumps=filled.clumps))
+    grains = SpherePacking(filled.positions, filled.radii) if filled.clumps is None else filled.clumps
+    info = {"grains": len(filled.radii) if filled.clumps is None else filled.clumps.count,
+            **({} if filled.clumps is None else {"spheres": len(filled.radii)}),
+            "void_ratio": filled.void_ratio, "void_ratio_bulk": filled.bulk_void_ratio,
             "void_ratio_target": sp.void_ratio, "void_ratio_within_tolerance": bool(ok), "zone_volume_m3": volume,
             "steps": filled.steps,
             "wall_clock_s": time.perf_counter() - t0}
-    return filled.positions, filled.radii, info
+    return grains, info
 
 
 # --------------------------------------------------------------------------- model
-def build_model(case, built, positions, radii, ramp):
-    """The DEM engine (grains; facets: rigid bodies first, then the DEM walls that are no plane,
-    the interface last; plane walls for the DEM walls that are (:func:`planar_walls`)) and the
-    FE volumes with the interface; collective. Returns (soil_model.Model, rigid FacetMeshes)."""
+def build_model(case, built, grains, ramp):
+    """The DEM engine (``grains``, a :class:`~de_domain.deposition.SpherePacking` or
+    :class:`~de_domain.clumps.ClumpPacking`; facets: rigid bodies first, then the DEM walls that
+    are no plane, the interface last; plane walls for the DEM walls that are
+    (:func:`planar_walls`)) and the FE volumes with the interface; collective. Returns
+    (soil_model.Model, rigid FacetMeshes)."""
     from cosim.apps.coupled import check_replicas, time_steps
     from cosim.interface import Interface
     from cosim.soil_model import Model
-    from de_domain import Engine, Particles
+    from de_domain import Engine
     from de_domain.zone_fill import facet_mesh, planar_walls, tets_volume
     em, split = case.embedded, built["split"]
     roles = Roles.of(em)
     mats, ids = grain_materials(case)
-    particles = Particles.from_spheres(positions, radii, np.full(len(radii), ids[em.sand_material], np.int32), mats)
+    particles, clumps = grains.bodies(mats, ids[em.sand_material])
+    positions, radii = grains.members()
     bodies = rigid_bodies(case, split, ids)
     for mesh, body in zip(bodies, em.rigid, strict=True):
         if body.seating_pressure is not None:  # clear of the grains, by a grain, until it is seated (seat)
@@ -285,12 +311,12 @@ def build_model(case, built, positions, radii, ramp):
     comm = mpi_comm() if mpi_comm().size > 1 else None
     dem = case.dem
     engine_args = dict(contact_law=dem.contact_law, gravity=dem.gravity, safety_factor=case.time.safety_factor,
-                       local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm)
+                       local_damping=dem.local_damping, viscous_damping=dem.viscous_damping, comm=comm, clumps=clumps)
     if split.fe is None:
         engine = Engine(particles, mats, walls=planes, facets=bodies + walls, **engine_args)
         return Model(engine), bodies
     sand = mats[ids[em.sand_material]]
-    bulk = sand.density * float(np.sum(4.0 / 3.0 * np.pi * radii**3)) / tets_volume(split.zone.tets)
+    bulk = sand.density * float(np.sum(grains.volumes())) / tets_volume(split.zone.tets)
     solid = build_fe(case, split, roles, bulk, ramp)
     check_replicas(solid)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
@@ -569,12 +595,12 @@ def simulate(prepared):
     else:
         clock = {}
         t0 = time.perf_counter()
-        positions, radii, fill_info = fill(case, prepared.built, out_dir, name)
+        grains, fill_info = fill(case, prepared.built, out_dir, name)
         clock["fill_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        model, bodies = build_model(case, prepared.built, positions, radii, ramp)
+        model, bodies = build_model(case, prepared.built, grains, ramp)
         clock["build_s"] = time.perf_counter() - t0
-        say(f"[{name}] {len(radii)} grains, DEM dt = {model.engine.dt:.3e} s"
+        say(f"[{name}] {fill_info['grains']} grains, DEM dt = {model.engine.dt:.3e} s"
             + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
                f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
         t0 = time.perf_counter()
@@ -583,7 +609,7 @@ def simulate(prepared):
         clock["rest_s"] = time.perf_counter() - t0
         cells = model.solid.comm.allreduce(model.solid.mesh.topology.index_map(3).size_local) \
             if model.solid is not None else 0  # collective
-        state = {"fill": fill_info, "rest": rest, "seating": seating, "clock": clock, "grains": len(radii),
+        state = {"fill": fill_info, "rest": rest, "seating": seating, "clock": clock, "grains": fill_info["grains"],
                  "fe_cells": cells,
                  "soil_density": model.soil_density, "row": 0, "loading_before_s": 0.0,
                  "compilation_before_s": 0.0,

@@ -153,7 +153,8 @@ class SpecimenSection(Section):
         description="drop the grains above this (scaled) diameter [m]")
     grains: Literal["spheres", "clumps"] = Field(
         default="spheres",
-        description="'spheres', or 'clumps' (direct_shear, triaxial): rigid grains of overlapping spheres shaped as "
+        description="'spheres', or 'clumps' (direct_shear, triaxial, embedded, footing): rigid grains of "
+                    "overlapping spheres shaped as "
                     "the [[dem.clumps]] templates, drawn by share, each enlarged to its sieve diameter (equal volume), "
                     "in random orientations")
     void_ratio: float = Field(

@@ -338,13 +338,14 @@ def _check_clumps(path, dem):
                             f"not less than the box's smallest side {side:.3g} m")
 
 
-SPECIMEN_CLUMP_KINDS = ("direct_shear", "triaxial")  # kinds whose [specimen] may be of clumped grains
+SPECIMEN_CLUMP_KINDS = ("direct_shear", "triaxial", "embedded", "footing")  # [specimen] may be of clumped grains
 
 
 def _check_specimen_grains(path, case):
-    """[specimen] grains = 'clumps' in a lab kind, with [[dem.clumps]] shapes whose largest grain fits
-    the box (a generated specimen: with source = 'file' the key is refused as unused, the file
-    says what its grains are); [[dem.clumps]] in a kind without [dem.particles] only with it."""
+    """[specimen] grains = 'clumps' in a kind that generates its grains, with [[dem.clumps]] shapes;
+    in a lab kind the largest grain fits the box (a zone's thickness is checked when the model is
+    meshed: ``cosim.apps.embedded.prepare``); with source = 'file' the key is refused as unused,
+    the file says what its grains are. [[dem.clumps]] in a kind without [dem.particles] only with it."""
     sp, dem, kind = case.specimen, case.dem, case.case.kind
     clumped = sp is not None and sp.grains == "clumps"
     if not clumped:
@@ -357,6 +358,8 @@ def _check_specimen_grains(path, case):
                         "uses spheres for now")
     if not dem.clumps:
         raise CaseError(path, "dem.clumps", None, "grains = 'clumps' need at least one [[dem.clumps]] grain shape")
+    if kind not in ("direct_shear", "triaxial"):
+        return
     side = case.direct_shear.sample_height if kind == "direct_shear" else case.triaxial.size
     d_max = _largest_grain(path, sp)
     for i, template in enumerate(clump_templates(path, dem)):

@@ -74,8 +74,9 @@ CORPUS = [
         edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),),
         append="\n[[dem.clumps]]\nmembers = [[-0.5, 0.0, 0.0, 0.5], [0.5, 0.0, 0.0, 0.5]]\n",
         label="clumps: a time step the spheres of the sieve curve take but its two-sphere grains do not"),
-    Bad("footing", "clumped grains are made for the kinds direct_shear, triaxial",
-        edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),), append=f"\n[[dem.clumps]]\n{CLUMP_ROD}\n"),
+    Bad("footing", "at least 3 of the largest clumped grains' lengths",
+        edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),), append=f"\n[[dem.clumps]]\n{CLUMP_ROD}\n",
+        label="clumps: rods too long for the footing's 10 mm slice (three rod lengths are needed)"),
     Bad("shear", "'specimen.grains' = 'clumps': not used here: source = 'file' takes the specimen", cut="[specimen]",
         append=f'\n[specimen]\ngrains = "clumps"\nsource = "file"\nfile = "packings/sand_bed_30mm.npz"\n'
                f"\n[[dem.clumps]]\n{CLUMP_ROD}\n", label="clumps: grains = 'clumps' with a packing file"),

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from test_footing import cosim, kill_during_loading, run_ok, set_options
+from test_footing import ROOT, cosim, kill_during_loading, run_ok, set_options
 
 CASE = "runs/retaining_wall_small.toml"
 SMALL = {"embedded.parameters.L": 0.09, "embedded.parameters.H": 0.04, "embedded.parameters.a": 0.03,
@@ -50,3 +50,26 @@ def test_a_killed_loading_resumes_to_the_same_rows(one_rank, tmp_path):
 def test_resume_without_a_checkpoint_is_one_message(tmp_path):
     res = cosim("run", CASE, "--out", str(tmp_path), "--resume", *overrides())
     assert res.returncode == 2 and "no checkpoint of the loading" in res.stderr
+
+
+def test_clumped_grains_fill_rest_and_load_the_same_on_two_ranks(tmp_path):
+    """The small wall with rods of two spheres (aspect 1.5) for grains, in a slice 12 mm thick
+    (three of the longest rods across): on 1 and 2 ranks the fill (clumps and their member
+    spheres), the rest and the rows are the same to the last bit, and at rest the supports
+    carry the grains' weight, each clump's once (the members carry their clump's mass)."""
+    case = tmp_path / "rods.toml"
+    case.write_text((ROOT / CASE).read_text() + "\n[[dem.clumps]]\nmembers = [[-0.5, 0, 0, 1], [0.5, 0, 0, 1]]\n")
+    sets = overrides({"embedded.parameters.Ly": 0.012, "specimen.grains": "clumps"})
+    for ranks in (1, 2):
+        run_ok("run", str(case), "--out", str(tmp_path / f"n{ranks}"), *sets, mpi=ranks if ranks > 1 else 0)
+    one, two = tmp_path / "n1" / "coupled", tmp_path / "n2" / "coupled"
+    for name in ("series.csv", "rest.csv"):
+        assert (two / name).read_text() == (one / name).read_text()
+    with np.load(one / "specimen.npz") as a, np.load(two / "specimen.npz") as b:
+        assert "clump_template_of" in a.files
+        for key in a.files:
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        assert len(a["radii"]) == 2 * len(a["clump_template_of"])
+    summary = json.loads((one / "summary.json").read_text())
+    assert summary["rest"]["support_force_over_weight"] == pytest.approx(1.0, abs=0.01)
+    assert summary["fill"]["spheres"] == 2 * summary["fill"]["grains"]

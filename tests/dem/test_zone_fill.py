@@ -35,15 +35,21 @@ def wedge():
     return tets, walls, lid
 
 
-@pytest.fixture(scope="module")
-def filled():
+def fill_wedge(shapes=None):
+    """The wedge filled to e = 0.74 under its lid, lifted to 5 Pa (``shapes``: clumped grains)."""
     tets, walls, lid = wedge()
     curve = specimen_curve(None, [2e-3, 3e-3], [0.0, 1.0])
     diameters = diameters_for_solid_volume(curve, solid_volume_for(0.74, tets_volume(tets)),
                                            np.random.default_rng(3))
     settings = GenerationSettings(box_length=1.0, height=Z, void_ratio=0.74, sand=SAND, wall=WALL, plate=WALL,
                                   friction=0.1, release_stress=5.0, seed=3)
-    return fill_zone(tets, [ContainerWall(walls, WALL), ContainerWall(lid, WALL, lid=True)], diameters, settings)
+    return fill_zone(tets, [ContainerWall(walls, WALL), ContainerWall(lid, WALL, lid=True)], diameters, settings,
+                     shapes=shapes)
+
+
+@pytest.fixture(scope="module")
+def filled():
+    return fill_wedge()
 
 
 def test_a_wedge_is_filled_with_every_grain_inside_its_walls(filled):
@@ -65,6 +71,43 @@ def test_the_void_ratio_is_that_of_the_grains_under_the_lid(filled):
     solid_under = float(np.sum(4 / 3 * np.pi * filled.radii[under] ** 3))
     assert filled.void_ratio == pytest.approx((volume - solid_under) / solid_under, rel=1e-12)
     assert filled.void_ratio >= (volume - solid) / solid              # released: looser, never denser
+
+
+@pytest.fixture(scope="module")
+def clumped():
+    """The wedge filled with rods of two spheres (aspect ratio 1.5: centres r apart)."""
+    from de_domain.clumps import ClumpTemplate
+    from de_domain.deposition import GrainShapes
+    return fill_wedge(GrainShapes([ClumpTemplate.line(2, 1.5)], (1.0,)))
+
+
+def test_clumped_grains_fill_a_wedge_whole_and_inside_its_walls(clumped):
+    c, pos, r = clumped.clumps, clumped.positions, clumped.radii
+    assert len(r) == 2 * c.count
+    rod = 2.0 * c.scale * c.templates[0].radii[0]                  # the members' radius, the same for both
+    np.testing.assert_allclose(r, np.repeat(rod / 2.0, 2), rtol=1e-12)
+    gap = np.linalg.norm(pos[0::2] - pos[1::2], axis=1)            # members one radius apart: rigid
+    np.testing.assert_allclose(gap, rod / 2.0, rtol=1e-9)
+    np.testing.assert_allclose(0.5 * (pos[0::2] + pos[1::2]), c.centres, atol=1e-12)
+    slack = 0.05 * r
+    floor = (Z * pos[:, 0] + X * pos[:, 2] - X * Z) / np.hypot(X, Z)
+    assert np.all(floor > r - slack) and np.all(pos[:, 0] < X - r + slack)
+    assert np.all((pos[:, 1] > r - slack) & (pos[:, 1] < LY - r + slack))
+    q = c.orientations                                               # random orientations, rotated by the fill
+    axes = np.column_stack([1 - 2 * (q[:, 2]**2 + q[:, 3]**2), 2 * (q[:, 1] * q[:, 2] + q[:, 0] * q[:, 3]),
+                            2 * (q[:, 1] * q[:, 3] - q[:, 0] * q[:, 2])])   # R e_x: the rod's axis
+    assert np.std(np.abs(axes), axis=0).min() > 0.1
+
+
+def test_a_clumped_fill_counts_each_rods_union_once(clumped):
+    """Two spheres of radius r with centres r apart: union = 8/3 π r³ − lens 5/12 π r³ = 9/4 π r³."""
+    c = clumped.clumps
+    r = c.scale * c.templates[0].radii[0]
+    union = 2.25 * np.pi * r**3
+    under = c.centres[:, 2] <= Z
+    volume = tets_volume(wedge()[0])
+    assert clumped.void_ratio == pytest.approx((volume - union[under].sum()) / union[under].sum(), rel=1e-3)
+    assert (volume - union.sum()) / union.sum() == pytest.approx(0.74, abs=0.02)   # the count drawn for the target
 
 
 def box(lo, hi):
