@@ -5,10 +5,11 @@
 // zone a ring of thickness a around the lining (cut by the ground surface when a > C), and, when
 // chimney > 0, the band |x| < chimney above the axis up to the ground surface (the ground that
 // falls after the crown); FE soil beyond. The section is meshed with triangles, h in the lining and the ring growing to h_far
-// `grow` beyond it, and extruded along y in layers h_y thick (Ly in all).
-// Physical names: volumes "lining", "zone", "soil"; surfaces "ground" (z = Hg), "base"
-// (z = 0), "far" (x = W), "axis" (x = 0), "sides" (y = 0 and y = Ly), "intrados" (the
-// lining's inside face). The zone's faces shared with the lining and the soil are the
+// `grow` beyond it, and extruded along y in layers h_y thick (Ly in all). When B > 0 the ground
+// surface over |x| < B/2 is a strip of its own (a surcharge: a rigid strip footing on it).
+// Physical names: volumes "lining", "zone", "soil"; surfaces "ground" (z = Hg, but the strip),
+// "strip" (when B > 0), "base" (z = 0), "far" (x = W), "axis" (x = 0), "sides" (y = 0 and
+// y = Ly), "intrados" (the lining's inside face). The zone's faces shared with the lining and the soil are the
 // coupling interface, found from the cells: no group for it.
 SetFactory("OpenCASCADE");
 DefineConstant[ D = {0.1, Name "Parameters/D"}, C = {0.1, Name "Parameters/C"},
@@ -16,7 +17,7 @@ DefineConstant[ D = {0.1, Name "Parameters/D"}, C = {0.1, Name "Parameters/C"},
                 W = {0.4, Name "Parameters/W"}, below = {0.2, Name "Parameters/below"},
                 Ly = {0.01, Name "Parameters/Ly"}, h = {0.005, Name "Parameters/h"},
                 h_far = {0.02, Name "Parameters/h_far"}, grow = {0.1, Name "Parameters/grow"},
-                chimney = {0, Name "Parameters/chimney"} ];
+                chimney = {0, Name "Parameters/chimney"}, B = {0, Name "Parameters/B"} ];
 DefineConstant[ h_y = {h, Name "Parameters/h_y"} ];   // the layers' thickness along y
 Hg = below + D + C;          // the ground surface
 zc = below + D / 2;          // the tunnel's axis
@@ -30,12 +31,17 @@ If (chimney > 0)
   joined() = BooleanUnion{ Surface{2}; Delete; }{ Surface{5}; Delete; };
   outline = joined(0);
 EndIf
-pieces() = BooleanFragments{ Surface{1}; Delete; }{ Surface{outline, 3, 4}; Delete; };
+If (B > 0)               // a vertex on the ground surface at x = B/2: the strip's edge
+  Point(100) = {B / 2, Hg, 0};
+  BooleanFragments{ Surface{1}; Delete; }{ Surface{outline, 3, 4}; Point{100}; Delete; }
+Else
+  BooleanFragments{ Surface{1}; Delete; }{ Surface{outline, 3, 4}; Delete; }
+EndIf
 eps = 1e-4 * (W + Hg);   // OpenCASCADE bounding boxes carry a tolerance
 // keep the pieces inside the ground (x >= 0, z <= Hg) and outside the opening
 keep() = Surface In BoundingBox{-eps, -eps, -eps, W + eps, Hg + eps, eps};
 opening() = Surface In BoundingBox{-eps, zc - D / 2 + t - eps, -eps, D / 2 - t + eps, zc + D / 2 - t + eps, eps};
-drop() = pieces();
+drop() = Surface{:};
 drop() -= keep();
 drop() += opening();
 Recursive Delete { Surface{drop()}; }
@@ -61,7 +67,13 @@ soil() -= ring_lining();
 Physical Volume("lining") = {ring_lining()};
 Physical Volume("zone") = {ring_zone()};
 Physical Volume("soil") = {soil()};
-Physical Surface("ground") = Surface In BoundingBox{-eps, -eps, Hg - eps, W + eps, Ly + eps, Hg + eps};
+ground() = Surface In BoundingBox{-eps, -eps, Hg - eps, W + eps, Ly + eps, Hg + eps};
+If (B > 0)
+  strip() = Surface In BoundingBox{-eps, -eps, Hg - eps, B / 2 + eps, Ly + eps, Hg + eps};
+  ground() -= strip();
+  Physical Surface("strip") = {strip()};
+EndIf
+Physical Surface("ground") = {ground()};
 Physical Surface("base") = Surface In BoundingBox{-eps, -eps, -eps, W + eps, Ly + eps, eps};
 Physical Surface("far") = Surface In BoundingBox{W - eps, -eps, -eps, W + eps, Ly + eps, Hg + eps};
 Physical Surface("axis") = Surface In BoundingBox{-eps, -eps, -eps, eps, Ly + eps, Hg + eps};

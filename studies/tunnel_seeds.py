@@ -13,7 +13,12 @@ the mean and standard deviation over the seeds, and the coupled model's mean aga
 all-DEM one. Writes ``<out>/table.md`` and the pictures of :func:`pictures`.
 
     python studies/tunnel_seeds.py [--seeds 11 12 13] [--case runs/tunnel.toml] [--out runs/out/tunnel_seeds] [--jobs 2]
-                                   [--set embedded.parameters.chimney=0.1 ...] [--ranks 2]
+                                   [--set embedded.parameters.chimney=0.1 ...] [--ranks 2] [--pictures tunnel]
+                                   [--no-fe]
+
+``--pictures NAME``: the pictures are docs/NAME_polar_rest.png, ... (a variant of the case
+keeps the shipped case's pictures). ``--no-fe``: without the FE-only twin (a case with rigid
+bodies, such as runs/tunnel_surcharge.toml, has none); the pictures then show the grain models.
 
 ``--set`` overrides go to every run (a variant of the case); a model's runs that exist are kept,
 so a variant of the zone can be compared against another study's all-DEM runs by linking
@@ -91,6 +96,8 @@ def measured(folder, volume="lining"):
     values.update({"s_max_mm": 1e3 * trough["s_max_m"], "i_mm": 1e3 * trough["i_m"], "K": trough["K"],
                    "surface_volume_loss_pct": 100.0 * trough["surface_volume_loss"],
                    "wall_clock_s": summary["wall_clock_s"]["total_s"], "grains": summary.get("grains", 0)})
+    for name, body in summary.get("rigid", {}).items():  # a surcharge: its force over the last TAIL of the rows
+        values[f"{name}_force_z_N"] = body["force_N"][2]
     return values
 
 
@@ -112,36 +119,36 @@ def table(rows, fe):
     return "\n".join(lines) + "\n"
 
 
-def pictures(folders, fe_folder, case_name, axis_x, z0):
-    """docs/tunnel_polar_rest.png (N and M at rest: each model's mean over the seeds, and the
-    FE-only twin's), docs/tunnel_polar_end.png (at the end of the loading, coupled and all-DEM:
+def pictures(folders, fe_folder, case_name, axis_x, z0, name="tunnel"):
+    """docs/<name>_polar_rest.png (N and M at rest: each model's mean over the seeds, and the
+    FE-only twin's), docs/<name>_polar_end.png (at the end of the loading, coupled and all-DEM:
     the FE-only lining, tied to its ground, is pulled into tension by the contraction),
-    docs/tunnel_trough.png (every run's settlements and fitted trough) and the first seed's
-    displacement sections."""
+    docs/<name>_trough.png (every run's settlements and fitted trough) and the first seed's
+    displacement sections; ``fe_folder`` None: without the FE-only twin."""
     mean = {}
     for model in MODELS:
         runs = [read_sections(folder / "lining_sections.csv") for label, folder in folders if label.startswith(model)]
         if runs:
             mean[model] = {k: np.mean([r[k] for r in runs], axis=0) for k in runs[0]}
-    fe = read_sections(fe_folder / "lining_sections.csv")
+    fe = read_sections(fe_folder / "lining_sections.csv") if fe_folder is not None else None
     counts = {m: sum(label.startswith(m) for label, _ in folders) for m in mean}
     names = {m: f"{'coupled' if m == 'coupled' else 'all-DEM'} (mean of {counts[m]})" for m in mean}
     for when, with_fe in (("rest", True), ("end", False)):
         column = "at_rest" if when == "rest" else "end"
         curves = {names[m]: (mean[m]["angle_deg"], mean[m][f"thrust_{column}"], mean[m][f"moment_{column}"])
                   for m in mean}
-        if with_fe:
+        if with_fe and fe is not None:
             curves["FE-only"] = (fe["angle_deg"], fe["thrust_at_rest"], fe["moment_at_rest"])
-        plot_polar(curves, ROOT / "docs" / f"tunnel_polar_{when}.png",
+        plot_polar(curves, ROOT / "docs" / f"{name}_polar_{when}.png",
                    f"{case_name}: the lining {'at rest' if when == 'rest' else 'at the end of the loading'}")
     troughs = {}
-    for label, folder in [*folders, ("FE-only", fe_folder)]:
+    for label, folder in [*folders, *([("FE-only", fe_folder)] if fe_folder is not None else [])]:
         x, settlement = read_trough(folder / "settlement_trough.csv", axis_x)
         troughs[label] = (x, settlement, fit_peck(x, settlement, z0))
-    plot_trough(troughs, ROOT / "docs" / "tunnel_trough.png", f"{case_name}: surface settlement against Peck (1969)")
+    plot_trough(troughs, ROOT / "docs" / f"{name}_trough.png", f"{case_name}: surface settlement against Peck (1969)")
     for model in mean:
         first = next(folder for label, folder in folders if label.startswith(model))
-        shutil.copy(first / "displacement_section.png", ROOT / "docs" / f"tunnel_displacement_{model}.png")
+        shutil.copy(first / "displacement_section.png", ROOT / "docs" / f"{name}_displacement_{model}.png")
 
 
 def main():
@@ -155,6 +162,7 @@ def main():
     parser.add_argument("--set", action="append", default=[], dest="overrides", metavar="KEY=VALUE",
                         help="a case override for every run, as cosim run --set")
     parser.add_argument("--no-pictures", action="store_true", help="write table.md only (not the docs' pictures)")
+    parser.add_argument("--pictures", default="tunnel", metavar="NAME", help="the pictures' names: docs/NAME_*.png")
     parser.add_argument("--no-fe", action="store_true", help="without the FE-only twin")
     args = parser.parse_args()
     import tomllib
@@ -178,8 +186,9 @@ def main():
     text = table(rows, fe)
     (args.out / "table.md").write_text(text)
     print(text)
-    if not args.no_pictures and not args.no_fe:  # the pictures show the FE-only twin too
-        pictures(folders, args.out / "fe_only" / "fe", case["case"]["name"], lining["centre"][0], z0)
+    if not args.no_pictures:
+        pictures(folders, None if args.no_fe else args.out / "fe_only" / "fe", case["case"]["name"],
+                 lining["centre"][0], z0, args.pictures)
 
 
 if __name__ == "__main__":

@@ -90,3 +90,19 @@ def test_a_ring_zone_around_a_tunnel_lining(cover):
         assert area(split.zone.interface) < np.pi * (ro + rz) * Ly
     assert sorted(split.fe.names(3)) == ["lining", "soil"]
     assert area(split.zone.free["axis"]) == pytest.approx(2 * a * Ly if cover >= a else (a + cover) * Ly, rel=1e-9)
+
+
+def test_a_strip_on_the_ground_over_a_tunnel():
+    """meshes/tunnel.geo with B > 0: the ground surface over 0 <= x <= B/2 (half model) is the
+    surface "strip" (a surcharge's footing), the rest stays "ground"; with the ring cut by the
+    ground surface both are free faces of the zone, the strip B/2 × Ly exactly, and the zone's
+    ground and strip together are its top without the strip (B = 0)."""
+    D, a, Ly, h, B = 0.1, 0.05, 0.01, 0.005, 0.04
+    parameters = {"D": D, "C": 0.03, "a": a, "Ly": Ly, "h": h, "h_far": 0.02}
+    plain = split_model("tunnel.geo", 0.02, parameters, ["zone"], ["lining", "soil"], MPI.COMM_SELF)
+    strip = split_model("tunnel.geo", 0.02, {**parameters, "B": B}, ["zone"], ["lining", "soil"], MPI.COMM_SELF)
+    assert strip.groups["strip"] == 2 and "strip" not in plain.groups
+    assert area(strip.zone.free["strip"]) == pytest.approx(0.5 * B * Ly, rel=1e-9)
+    assert np.allclose(strip.zone.free["strip"][:, :, 2], D + 0.2 + 0.03)  # on the ground surface: below + D + C
+    assert area(strip.zone.free["ground"]) + area(strip.zone.free["strip"]) == \
+        pytest.approx(area(plain.zone.free["ground"]), rel=1e-9)
