@@ -176,13 +176,21 @@ def _plot_fe_face(ax, coordinates, displacement, grain_tets, top):
 
 
 def compare_models(case_dir, rigid, title):
-    """When both models' series exist: ``comparison.csv`` (per rigid body the mean force and
-    moment over the loading in each model and their difference) and ``comparison.png``."""
-    paths = {m: case_dir / m / "series.csv" for m in ("coupled", "dem")}
-    if not all(p.exists() for p in paths.values()) or not rigid:
+    """When both models have run to their end (each folder's ``summary.json``, written last) and
+    their series have the rigid bodies' columns: ``comparison.csv`` (per rigid body the mean
+    force and moment over the loading in each model and their difference) and
+    ``comparison.png``. A twin still running (its series partial) or of another case is left
+    out with a line saying so."""
+    models = ("coupled", "dem")
+    if not rigid or not all((case_dir / m / "summary.json").exists() for m in models):
         return None
     from cosim.lab.shear_report import read_series
-    curves = {m: read_series(p) for m, p in paths.items()}
+    curves = {m: read_series(case_dir / m / "series.csv") for m in models}
+    wanted = [f"{body.name}_{q}_{a}" for body in rigid for q in ("force", "moment") for a in AXES]
+    if any(name not in curves[m] or len(curves[m][name]) == 0 for m in models for name in wanted):
+        say(f"[{title}] not compared with the other model: its series.csv has no rows of these rigid bodies "
+            "(still running, or of another case)")
+        return None
     lines = ["quantity,coupled,dem,difference"]
     for body in rigid:
         for q in [f"force_{a}" for a in AXES] + [f"moment_{a}" for a in AXES]:

@@ -157,3 +157,35 @@ def test_the_fe_only_tunnel_agrees_with_einstein_and_schwartz(tmp_path):
     assert np.max(np.abs(thrust / thrust_es - 1.0)) < 0.06
     assert np.max(np.abs(moment - moment_es)) < 0.10 * np.max(np.abs(moment_es))
     assert np.all(sections["thrust_end"] < 0.0)
+
+
+def test_the_models_are_compared_only_when_both_have_finished(tmp_path):
+    """compare_models (the last step of an embedded run): with the other model still running —
+    its series.csv only a header, or no summary.json yet — nothing is compared and nothing
+    fails; with both finished, comparison.csv has each rigid body's mean force and moment."""
+    from types import SimpleNamespace
+
+    from cosim.apps.embedded_report import compare_models
+    columns = ["time", "wall_displacement", "wall_rotation"] + [f"wall_{q}_{a}" for q in ("force", "moment")
+                                                                for a in "xyz"]
+    wall = [SimpleNamespace(name="wall", velocity=[1.0, 0.0, 0.0])]
+
+    def write(model, rows, finished=True):
+        folder = tmp_path / model
+        folder.mkdir(exist_ok=True)
+        text = ",".join(columns) + "\n"
+        text += "".join(",".join(str(v * (1 + k)) for k in range(len(columns))) + "\n" for v in rows)
+        (folder / "series.csv").write_text(text)
+        if finished:
+            (folder / "summary.json").write_text("{}")
+
+    write("coupled", [1.0, 2.0])
+    write("dem", [], finished=False)
+    assert compare_models(tmp_path, wall, "t") is None                   # the twin has not finished
+    write("dem", [])
+    assert compare_models(tmp_path, wall, "t") is None                   # its series has no rows yet
+    assert not (tmp_path / "comparison.csv").exists()
+    write("dem", [2.0, 4.0])
+    lines = compare_models(tmp_path, wall, "t")
+    assert lines[0] == "quantity,coupled,dem,difference"
+    assert (tmp_path / "comparison.csv").read_text().startswith("quantity,coupled,dem,difference\nwall_force_x,")
