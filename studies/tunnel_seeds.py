@@ -6,8 +6,9 @@ Runs the case with each seed in both models unless a run's summary exists (``--j
 a time, one thread each: ``NUMBA_NUM_THREADS=1``, on ``--ranks`` MPI ranks; two at a time, about
 4 minutes a coupled run and 12 an all-DEM one on this 2-core machine), and the FE-only twin once
 (it has no packing). Per run: the lining's thrust and moment at the crown, springline and
-invert at rest (row 0 of series.csv) and at the end of the loading (the mean of the last TAIL of
-the rows), and the surface trough's Peck fit
+invert at rest (row 0 of series.csv), at the end of the loading (the mean of the last TAIL of
+the rows) and the change between them, each rigid body's vertical force at the end (a
+surcharge), and the surface trough's Peck fit
 (S_max, i, K = i / z0, the surface volume loss V_s / A; cosim.apps.tunnel_report). Per model
 the mean and standard deviation over the seeds, and the coupled model's mean against the
 all-DEM one. Writes ``<out>/table.md`` and the pictures of :func:`pictures`.
@@ -92,6 +93,7 @@ def measured(folder, volume="lining"):
             column = series[f"{volume}_{q}_{where}"]
             values[f"{q}_{where}_rest"] = float(column[0])
             values[f"{q}_{where}_end"] = float(np.mean(column[-n:]))
+            values[f"{q}_{where}_change"] = values[f"{q}_{where}_end"] - values[f"{q}_{where}_rest"]
     trough = summary["linings"][volume]["trough"]
     values.update({"s_max_mm": 1e3 * trough["s_max_m"], "i_mm": 1e3 * trough["i_m"], "K": trough["K"],
                    "surface_volume_loss_pct": 100.0 * trough["surface_volume_loss"],
