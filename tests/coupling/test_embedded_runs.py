@@ -56,7 +56,8 @@ def test_clumped_grains_fill_rest_and_load_the_same_on_two_ranks(tmp_path):
     """The small wall with rods of two spheres (aspect 1.5) for grains, in a slice 12 mm thick
     (three of the longest rods across): on 1 and 2 ranks the fill (clumps and their member
     spheres), the rest and the rows are the same to the last bit, and at rest the supports
-    carry the grains' weight, each clump's once (the members carry their clump's mass)."""
+    carry the grains' weight, each clump's once (the members carry their clump's mass); its
+    specimen.npz, read back as a packing file, rests the same to the last bit."""
     case = tmp_path / "rods.toml"
     case.write_text((ROOT / CASE).read_text() + "\n[[dem.clumps]]\nmembers = [[-0.5, 0, 0, 1], [0.5, 0, 0, 1]]\n")
     sets = overrides({"embedded.parameters.Ly": 0.012, "specimen.grains": "clumps"})
@@ -73,3 +74,11 @@ def test_clumped_grains_fill_rest_and_load_the_same_on_two_ranks(tmp_path):
     summary = json.loads((one / "summary.json").read_text())
     assert summary["rest"]["support_force_over_weight"] == pytest.approx(1.0, abs=0.01)
     assert summary["fill"]["spheres"] == 2 * summary["fill"]["grains"]
+    # its specimen.npz read back (source = "file") is the same model: the same rest to the last bit
+    text = case.read_text()
+    start, end = text.index("[specimen]"), text.index("[embedded]")
+    reread = tmp_path / "reread.toml"
+    reread.write_text(text[:start] + f'[specimen]\nsource = "file"\nfile = "{one / "specimen.npz"}"\n\n'
+                      + text[end:text.index("[[dem.clumps]]")])
+    run_ok("run", str(reread), "--out", str(tmp_path / "file"), *overrides({"embedded.parameters.Ly": 0.012}))
+    assert (tmp_path / "file" / "coupled" / "rest.csv").read_text() == (one / "rest.csv").read_text()
