@@ -610,12 +610,6 @@ def radius_expansion(diameters, s: GenerationSettings, log=None, increments=40, 
     return _specimen(engine, grains, s, "radius_expansion", steps, stages)
 
 
-def _motion(engine):
-    """Copies of every grain's position, velocity and angular velocity (collective when distributed)."""
-    grains = engine.global_particles()
-    return grains.pos.copy(), grains.vel.copy(), grains.angvel.copy()
-
-
 def _critical_dt_all(s, diameters, shapes=None):
     """Δt_crit of the smallest grain (linear law, k = 2 E r) with scaled density; with
     ``shapes``, of each template at the smallest diameter, its members by their clump's critical

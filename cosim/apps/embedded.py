@@ -236,8 +236,9 @@ def fill(case, built, out_dir, name):
         solids = grains.volumes()
         e = (volume - float(np.sum(solids))) / float(np.sum(solids))
         say(f"[{name}] grains from {sp.file}: {len(solids)}, e = {e:.4f} over the grain volumes")
-        return grains, {"source": sp.file, "grains": len(solids), "void_ratio": e, "zone_volume_m3": volume,
-                        "wall_clock_s": 0.0}
+        spheres = {} if isinstance(grains, SpherePacking) else {"spheres": len(grains.members()[1])}
+        return grains, {"source": sp.file, "grains": len(solids), **spheres, "void_ratio": e,
+                        "zone_volume_m3": volume, "wall_clock_s": 0.0}
     rng = np.random.default_rng(case.case.seed)
     diameters = diameters_for_solid_volume(built["curve"], solid_volume_for(sp.void_ratio, volume), rng)
     sand = mats[ids[sp.deposition_material or case.embedded.sand_material]]  # the grains' material while filled

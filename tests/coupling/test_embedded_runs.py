@@ -82,3 +82,5 @@ def test_clumped_grains_fill_rest_and_load_the_same_on_two_ranks(tmp_path):
                       + text[end:text.index("[[dem.clumps]]")])
     run_ok("run", str(reread), "--out", str(tmp_path / "file"), *overrides({"embedded.parameters.Ly": 0.012}))
     assert (tmp_path / "file" / "coupled" / "rest.csv").read_text() == (one / "rest.csv").read_text()
+    reread_fill = json.loads((tmp_path / "file" / "coupled" / "summary.json").read_text())["fill"]
+    assert (reread_fill["grains"], reread_fill["spheres"]) == (summary["fill"]["grains"], summary["fill"]["spheres"])
