@@ -214,7 +214,7 @@ def facet_mesh(triangles, material):
 
 
 def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None, attempts=400,
-              increments=40, steps_per_increment=100, shapes=None) -> FilledZone:
+              increments=40, steps_per_increment=100, shapes=None, settle=False) -> FilledZone:
     """Grains of ``diameters`` (largest first or not) filling the tetrahedra ``tets`` inside
     ``walls`` (:class:`ContainerWall`), by the steps of the module docstring. ``s`` supplies
     the grain and generation parameters (its box sizes are not used; its ``plate`` material
@@ -222,6 +222,12 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     (collective). ``shapes`` (:class:`~de_domain.deposition.GrainShapes`): clumped grains, each
     of a template drawn by share and enlarged to its diameter (equal volume), in a random
     orientation; its enclosing sphere is placed as a sphere is, and it grows about its centre.
+    ``settle``: the expansion's stress is let go in every zone, not only a closed one (the grains
+    shrunk until their mean stress is at most ``s.release_stress``), and the grains settle under
+    gravity with their material's own friction and rolling resistance (not the generation's):
+    their stress at rest is their weight's, with the ratio of horizontal to vertical stress of a
+    ground laid down under gravity (K0); otherwise a zone under a lid keeps the expansion's
+    horizontal stress, the lid lifted off its vertical one.
     Raises ValueError when the cloud does not fit."""
     grains, shrink = _placed_small(tets, walls, diameters, s, attempts, shapes)
     volume = tets_volume(tets)
@@ -260,13 +266,20 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
         grains = grains.moved(engine)
     lid = [w for w in walls if w.lid]
     lid_normal, lid_area = _outward(lid, tets.reshape(-1, 3).mean(axis=0))
-    if not lid:  # a closed zone: no lid to lift, so let the expansion's locked-in stress go here
-        engine = engine_for(grains, (0.0, 0.0, 0.0), False)
-        grains, factor, used, stress = _release_closed(engine, grains, volume, s, engine_for)
+    if not lid or settle:  # a closed zone has no lid to lift: let the expansion's locked-in stress go here
+        target = min(s.seat_stress, s.release_stress) if settle and s.release_stress is not None else s.seat_stress
+        engine = engine_for(grains, (0.0, 0.0, 0.0), bool(lid))
+        shrink = SETTLE_SHRINK if settle else RELEASE_SHRINK
+        grains, factor, used, stress = _release(engine, grains, volume, s, engine_for, target, bool(lid), shrink,
+                                                still=settle)
         steps += used
-        say(f"zone fill (closed zone): the grains shrunk by {100.0 * (1.0 - factor):.2f} % to let "
-            f"the expansion's stress go: mean stress {stress:.3g} Pa (to at most seat_stress = {s.seat_stress:.3g} "
-            f"Pa, shrinking {100.0 * (1.0 - RELEASE_LIMIT):.0f} % at most)")
+        say(f"zone fill ({'settle' if settle else 'closed zone'}): the grains shrunk by {100.0 * (1.0 - factor):.2f} % "
+            f"to let the expansion's stress go: mean stress {stress:.3g} Pa (to at most {target:.3g} Pa, "
+            f"shrinking {100.0 * (1.0 - RELEASE_LIMIT):.0f} % at most)")
+    if settle:  # the weight's stress is built with the grains' own friction and rolling resistance
+        own = replace(s, friction=None, rolling_friction=None, rolling_stiffness=None)
+        materials = _container_materials(own, walls)
+        friction = s.sand.friction
     for label, gravity in (("expanded", (0.0, 0.0, 0.0)), ("gravity", s.gravity)):
         engine = engine_for(grains, gravity, True)
         loose = (lambda e: _lid_stress(e, walls, lid_normal, lid_area) < s.seat_stress) if label == "expanded" else None
@@ -372,12 +385,14 @@ class _WholeVolume:
 
 RELEASE_SHRINK = 0.995  # the grains' radii times this, a step, while a closed zone's stress is too high
 RELEASE_LIMIT = 0.95    # ... down to at most this
+SETTLE_SHRINK = 0.999   # the same, in finer steps, when a zone is let settle under its weight (fill_zone's settle)
 
 
-def _release_closed(engine, grains, volume, s, engine_for):
-    """Shrink every grain of a closed zone (no lid to lift) by RELEASE_SHRINK a step, without
-    gravity, until the mean stress of its contacts, tr σ / 3 with σ = 1/V Σ f ⊗ l
-    (love_weber_stress over the zone's volume, compression +) is at most ``s.seat_stress``: a radius
+def _release(engine, grains, volume, s, engine_for, target, with_lid, shrink, still):
+    """Shrink every grain by ``shrink`` a step (``still``: stopped before each step), without
+    gravity (the lid in place when ``with_lid``), until the mean stress of its contacts, tr σ / 3
+    with σ = 1/V Σ f ⊗ l (love_weber_stress over the zone's volume, compression +) is at most
+    ``target``, or they have shrunk to RELEASE_LIMIT: a radius
     expansion inside closed faces ends with the grains pressed together (a closed ring around
     a tunnel lining held overlaps of up to 11 % of a radius, stiff enough cages for a light
     grain to chatter at the fill's time step). Returns (the grains shrunk and moved, the factor
@@ -390,9 +405,12 @@ def _release_closed(engine, grains, volume, s, engine_for):
     def mean_stress(engine):  # compression positive
         return np.trace(love_weber_stress(engine, region)) / 3.0
 
-    while mean_stress(engine) > s.seat_stress and factor * RELEASE_SHRINK >= RELEASE_LIMIT:
-        factor *= RELEASE_SHRINK
-        engine = engine_for(grains.moved(engine), (0.0, 0.0, 0.0), False, factor)
+    while mean_stress(engine) > target and factor * shrink >= RELEASE_LIMIT:
+        factor *= shrink
+        grains = grains.moved(engine)
+        if still:  # the elastic energy let go does not keep a gas of grains colliding
+            grains = replace(grains, velocities=None, angular_velocities=None)
+        engine = engine_for(grains, (0.0, 0.0, 0.0), with_lid, factor)
         engine.run(4 * s.check_every)
         steps += 4 * s.check_every
     return grains.moved(engine).resized(factor), factor, steps, float(mean_stress(engine))

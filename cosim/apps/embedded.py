@@ -14,7 +14,8 @@ The run, in both models:
    inside their faces (:mod:`de_domain.zone_fill`): the interface, walls and rigid bodies hold
    them, a lid closes each free surface and is lifted and removed at the end;
 2. **Rest** — the model (FE volumes under gravity, with local damping) comes to rest; the
-   vertical force on every support over the grains' weight is reported (``rest.csv``);
+   vertical force on every support over the grains' weight is reported (``rest.csv``), and
+   the grains' stress by depth with K = σ_h / σ_v (``rest_stress.csv``);
 3. **Loading** — each rigid body is held for one row (row 0: the forces at rest), then moves
    with its velocity and rotates about its pivot for ``embedded.loading_time``; ``series.csv``
    has per row and body the displacement, rotation,
@@ -38,14 +39,17 @@ import numpy as np
 
 from cosim.apps.embedded_model import (
     AXES,
+    REST_STRESS_COLUMNS,
     LoadingRamp,
     Roles,
     build_fe,
     grain_materials,
     lining_columns,
     lining_gauges,
+    rest_stress,
     roller_axis,
     sections,
+    stress_bands,
     write_sections,
 )
 from cosim.errors import CaseError
@@ -54,6 +58,7 @@ from cosim.outputs import (
     ProgressLine,
     PvdCollection,
     atomic_write_npz,
+    atomic_write_text,
     compilation_seconds,
     is_root,
     mpi_comm,
@@ -64,6 +69,7 @@ from cosim.outputs import (
 FRAMES = 5  # ParaView frames over the loading
 STATE = "embedded_state.json"  # the loading loop's state at the last checkpoint (with checkpoint.npz)
 LOADING_START = "loading_start.npz"  # every grain's position when the loading began
+REST_BAND_GRAINS = 5  # rest_stress.csv: the bands are this many of the largest grains high
 RELEASE_FRACTION = 0.02  # the lid is lifted until it carries this x the self-weight stress at the zone's bottom
 
 
@@ -259,7 +265,8 @@ def fill(case, built, out_dir, name):
     comm = mpi_comm() if mpi_comm().size > 1 else None
     try:
         filled = fill_zone(split.zone.tets, container(case, split, mats, ids), diameters, settings,
-                           log=lambda text: say(f"[{name}] {text}"), comm=comm, shapes=built.get("shapes"))
+                           log=lambda text: say(f"[{name}] {text}"), comm=comm, shapes=built.get("shapes"),
+                           settle=sp.zone_stress == "weight")
     except ValueError as exc:
         raise RuntimeError(f"[{name}] {exc}") from None
     ok = abs(filled.void_ratio - sp.void_ratio) <= sp.tolerance
@@ -394,6 +401,19 @@ def seat(model, bodies, rigid, interval, loading_time, name):
                 f"contact (seating pressure {body.seating_pressure / 1e3:.3g} kPa); its displacement counts from here")
         out[body.name] = {"pressure_Pa": pressure, "travel_m": travel}
     return out
+
+
+def report_rest_stress(engine, tets, d_max, out_dir, name):
+    """``rest_stress.csv``: the grains' stress at rest in horizontal bands REST_BAND_GRAINS
+    ``d_max`` high (:func:`~cosim.apps.embedded_model.rest_stress`); returns its summary, the
+    earth pressure coefficients over the grain volume. Collective."""
+    rows, overall = rest_stress(engine, stress_bands(tets, REST_BAND_GRAINS * d_max))
+    if is_root():
+        lines = [",".join(REST_STRESS_COLUMNS)] + [",".join(f"{v:.9g}" for v in row) for row in rows]
+        atomic_write_text(out_dir / "rest_stress.csv", "\n".join(lines) + "\n")
+    say(f"[{name}] the grains at rest: K = sigma_h / sigma_v = {overall['K_x']:.3f} (x), {overall['K_y']:.3f} (y) "
+        f"over their volume, sigma_v = {overall['sigma_zz_Pa']:.4g} Pa (rest_stress.csv: by depth)")
+    return overall
 
 
 def resumed_model(case, case_path, out_dir, built, state, ramp):
@@ -606,6 +626,8 @@ def simulate(prepared):
                f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
         t0 = time.perf_counter()
         rest = come_to_rest(model, out_dir, name, em.rest_unbalanced_force, em.max_rest_time)
+        rest["grains"] = report_rest_stress(model.engine, prepared.built["split"].zone.tets,
+                                            2.0 * float(np.max(grains.enclosing_radii())), out_dir, name)
         seating = seat(model, bodies, em.rigid, em.loading_time / em.rows / 4, em.loading_time, name)
         clock["rest_s"] = time.perf_counter() - t0
         cells = model.solid.comm.allreduce(model.solid.mesh.topology.index_map(3).size_local) \

@@ -161,3 +161,84 @@ def write_sections(path, at_rest, end):
     lines = [f"{a:.6g},{n0:.9g},{m0:.9g},{n1:.9g},{m1:.9g}" for a, n0, m0, n1, m1 in
              zip(end["angle_deg"], at_rest["thrust"], at_rest["moment"], end["thrust"], end["moment"], strict=True)]
     atomic_write_text(path, header + "\n".join(lines) + "\n")
+
+
+REST_STRESS_COLUMNS = ("z_top_m", "z_bottom_m", "volume_m3", "sigma_xx_Pa", "sigma_yy_Pa", "sigma_zz_Pa",
+                       "sigma_xz_Pa", "K_x", "K_y")
+
+
+@dataclass(frozen=True)
+class Band:
+    """A horizontal band of the grain volume (a Love–Weber region): the contact points with
+    ``bottom`` ≤ z < ``top``; ``volume`` its part of the grain volume (m³)."""
+    top: float
+    bottom: float
+    volume: float
+
+    def contains(self, points):
+        return (points[:, 2] >= self.bottom) & (points[:, 2] < self.top)
+
+
+def _tet_volumes(a, b, c, d):
+    return np.abs(np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a)) / 6.0
+
+
+def volume_below(tets, level):
+    """The volume (m³) of the tetrahedra (k, 4, 3) below the plane z = ``level``, exactly: per
+    tetrahedron with its corners sorted by height, one corner below keeps the tetrahedron cut off
+    at that corner (volume V t₁ t₂ t₃, t the edges' fractions below the plane), three below lose
+    the one cut off at the corner above, and two below keep a prism (corners a, b below, its
+    edges' crossings on the plane), cut into three tetrahedra."""
+    order = np.argsort(tets[:, :, 2], axis=1, kind="stable")
+    t = np.take_along_axis(tets, order[:, :, None], axis=1)
+    h = t[:, :, 2] - level
+    below = np.count_nonzero(h <= 0.0, axis=1)
+    whole = _tet_volumes(*(t[:, k] for k in range(4)))
+    total = float(np.sum(whole[below == 4]))
+
+    def crossing(rows, i, j):  # where edge i–j of the sorted corners meets the plane
+        f = h[rows, i] / (h[rows, i] - h[rows, j])
+        return t[rows, i] + f[:, None] * (t[rows, j] - t[rows, i])
+
+    one = below == 1
+    total += float(np.sum(whole[one] * np.prod(h[one, :1] / (h[one, :1] - h[one, 1:]), axis=1)))
+    three = below == 3
+    total += float(np.sum(whole[three] * (1.0 - np.prod(h[three, 3:] / (h[three, 3:] - h[three, :3]), axis=1))))
+    rows = np.flatnonzero(below == 2)
+    a, b = t[rows, 0], t[rows, 1]
+    p, q, r, u = crossing(rows, 0, 2), crossing(rows, 0, 3), crossing(rows, 1, 2), crossing(rows, 1, 3)
+    total += float(np.sum(_tet_volumes(a, p, q, b) + _tet_volumes(p, q, b, r) + _tet_volumes(q, b, r, u)))
+    return total
+
+
+def stress_bands(tets, height):
+    """The grain volume (tetrahedra (k, 4, 3)) cut into horizontal bands of about ``height``
+    from its top down, the last one reaching its bottom; the first band also takes every
+    contact above the top, the last every one below the bottom; each with its volume."""
+    z = tets[:, :, 2]
+    top, bottom = float(z.max()), float(z.min())
+    count = max(1, int(round((top - bottom) / height)))
+    cuts = top - (top - bottom) * np.arange(count + 1) / count
+    below = [volume_below(tets, c) for c in cuts]
+    cuts[0], cuts[-1] = np.inf, -np.inf
+    return [Band(float(cuts[k]), float(cuts[k + 1]), below[k] - below[k + 1]) for k in range(count)]
+
+
+def rest_stress(engine, bands):
+    """The grains' stress at rest by band: σ = 1/V Σ_c f_c ⊗ l_c over the contacts in the band
+    (:func:`de_domain.diagnostics.love_weber_stress`, compression +; the supports' contacts
+    included) and the ratios K_x = σ_xx / σ_zz, K_y = σ_yy / σ_zz (the earth pressure coefficient
+    at rest, K0 of an undisturbed level ground, where gravity is along z); and over the whole
+    grain volume, σ = Σ V_b σ_b / Σ V_b. Returns (CSV rows, {K_x, K_y, sigma_zz_Pa}); collective."""
+    from de_domain.diagnostics import love_weber_stress
+    rows, total, volume = [], np.zeros((3, 3)), 0.0
+    for band in bands:
+        sigma = love_weber_stress(engine, band) if band.volume > 0 else np.zeros((3, 3))
+        total += band.volume * sigma
+        volume += band.volume
+        k = [sigma[0, 0] / sigma[2, 2], sigma[1, 1] / sigma[2, 2]] if sigma[2, 2] > 0 else [np.nan, np.nan]
+        rows.append([band.top, band.bottom, band.volume, sigma[0, 0], sigma[1, 1], sigma[2, 2],
+                     0.5 * (sigma[0, 2] + sigma[2, 0]), *k])
+    sigma = total / volume
+    return rows, {"K_x": float(sigma[0, 0] / sigma[2, 2]), "K_y": float(sigma[1, 1] / sigma[2, 2]),
+                  "sigma_zz_Pa": float(sigma[2, 2])}

@@ -157,6 +157,15 @@ class SpecimenSection(Section):
                     "overlapping spheres shaped as "
                     "the [[dem.clumps]] templates, drawn by share, each enlarged to its sieve diameter (equal volume), "
                     "in random orientations")
+    zone_stress: Literal["expansion", "weight"] = Field(
+        default="expansion",
+        description="a zone fill's stress at rest (embedded, footing): 'expansion' lifts a lid over a free surface "
+                    "off the radius expansion's stress (a closed zone's is let go) and keeps the horizontal stress "
+                    "the walls hold; 'weight' lets the expansion's stress go everywhere (the grains shrunk until "
+                    "their mean stress is 2 % of their weight's at the zone's bottom) and lets them settle under "
+                    "gravity with their material's own friction: a ground laid down under its weight, whose "
+                    "release loosens the packing where the expansion pressed it hard. rest_stress.csv gives "
+                    "K = sigma_h / sigma_v by depth (the tunnel's block: 0.85 and 0.75)")
     void_ratio: float = Field(
         default=0.65, gt=0.3, lt=1.5,
         description="target void ratio e = V_voids/V_solids of the specimen [-]")

@@ -51,6 +51,8 @@ _UNUSED = [
     ("specimen", ("file",), lambda c, s: s.source == "generate", "source = 'generate' reads no file"),
     ("specimen", tuple(n for n in SpecimenSection.model_fields if n not in ("source", "file")),
      lambda c, s: s.source == "file", "source = 'file' takes the specimen as it is from the file"),
+    ("specimen", ("zone_stress",), lambda c, s: c.case.kind not in ("embedded", "footing"),
+     "zone_stress is for a zone fill (kinds embedded and footing)"),
     ("specimen", ("layers", "undercompaction", "friction_reduction", "hold_friction"),
      lambda c, s: s.source == "generate" and s.method == "radius_expansion",
      "method = 'radius_expansion' grows the radii of one cloud in the closed box: no layers, no compaction plate"),

@@ -64,6 +64,9 @@ CORPUS = [
     # ---------------------------------------------------------------- grains with shape (clumps)
     Bad("shear", "grains = 'clumps' need at least one [[dem.clumps]] grain shape",
         edit=(("[specimen]\n", '[specimen]\ngrains = "clumps"\n'),), label="clumps: a clumped specimen with no shape"),
+    Bad("shear", "zone_stress is for a zone fill (kinds embedded and footing)",
+        sets=['specimen.zone_stress="weight"']),
+    Bad("embedded", "'specimen.zone_stress'", sets=['specimen.zone_stress="settled"']),
     Bad("shear", "grain shapes need [specimen] grains = 'clumps'", append=f"\n[[dem.clumps]]\n{CLUMP_ROD}\n",
         label="clumps: a shape for a specimen of spheres"),
     Bad("triaxial", "not less than half the specimen",

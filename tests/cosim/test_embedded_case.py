@@ -40,6 +40,12 @@ def test_the_model_rests_on_its_supports_with_the_grains_weight(coupled):
     assert fill["zone_volume_m3"] == pytest.approx(0.03 * 0.01 * 0.04, rel=1e-12)
     assert fill["void_ratio"] >= 0.74 - 1e-3               # the target, released a little looser
     assert summary["interface_facets"] > 0 and summary["subcycles"] >= 1
+    grains = rest["grains"]  # rest_stress.csv summed over the zone (tests/cosim/test_rest_stress.py)
+    rows = np.loadtxt(coupled / "rest_stress.csv", delimiter=",", skiprows=1, ndmin=2)
+    sigma_zz = np.sum(rows[:, 2] * rows[:, 5]) / np.sum(rows[:, 2])
+    assert grains["sigma_zz_Pa"] == pytest.approx(sigma_zz, rel=1e-6) and sigma_zz > 0.0
+    assert np.sum(rows[:, 2]) == pytest.approx(fill["zone_volume_m3"], rel=1e-12)
+    assert 0.0 < grains["K_x"] < 3.0 and 0.0 < grains["K_y"] < 3.0
 
 
 def test_the_backfill_pushes_the_wall_away_from_it(coupled):
@@ -53,7 +59,7 @@ def test_the_backfill_pushes_the_wall_away_from_it(coupled):
 
 def test_the_run_writes_what_a_user_opens(coupled):
     for name in ("load_displacement.png", "displacement_section.png", "particles.pvd", "fields.xdmf",
-                 "specimen.npz", "final_packing.npz", "rest.csv"):
+                 "specimen.npz", "final_packing.npz", "rest.csv", "rest_stress.csv"):
         assert (coupled / name).exists(), name
 
 

@@ -35,8 +35,9 @@ def wedge():
     return tets, walls, lid
 
 
-def fill_wedge(shapes=None):
-    """The wedge filled to e = 0.74 under its lid, lifted to 5 Pa (``shapes``: clumped grains)."""
+def fill_wedge(shapes=None, settle=False):
+    """The wedge filled to e = 0.74 under its lid, lifted to 5 Pa (``shapes``: clumped grains;
+    ``settle``: the expansion's stress let go and the grains settled under gravity)."""
     tets, walls, lid = wedge()
     curve = specimen_curve(None, [2e-3, 3e-3], [0.0, 1.0])
     diameters = diameters_for_solid_volume(curve, solid_volume_for(0.74, tets_volume(tets)),
@@ -44,7 +45,7 @@ def fill_wedge(shapes=None):
     settings = GenerationSettings(box_length=1.0, height=Z, void_ratio=0.74, sand=SAND, wall=WALL, plate=WALL,
                                   friction=0.1, release_stress=5.0, seed=3)
     return fill_zone(tets, [ContainerWall(walls, WALL), ContainerWall(lid, WALL, lid=True)], diameters, settings,
-                     shapes=shapes)
+                     shapes=shapes, settle=settle)
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +72,26 @@ def test_the_void_ratio_is_that_of_the_grains_under_the_lid(filled):
     solid_under = float(np.sum(4 / 3 * np.pi * filled.radii[under] ** 3))
     assert filled.void_ratio == pytest.approx((volume - solid_under) / solid_under, rel=1e-12)
     assert filled.void_ratio >= (volume - solid) / solid              # released: looser, never denser
+
+
+def test_a_settled_fill_lets_the_expansions_stress_go_before_gravity(filled):
+    """settle = True: the grains are shrunk, the lid in place and gravity off, until the mean
+    stress of their contacts is at most release_stress (5 Pa; the lid-lifted fill of the same
+    grains started from 0.44 MPa), then settle under gravity; every grain ends inside the walls,
+    looser than the lid-lifted fill by what the shrinking took (the run reports e against its
+    target)."""
+    import re
+    settled = fill_wedge(settle=True)
+    released = [m for m in settled.log if m.startswith("zone fill (settle)")]
+    found = re.search(r"shrunk by ([\d.]+) %.*mean stress ([\d.e+-]+) Pa", released[0])
+    shrunk, stress = float(found[1]), float(found[2])
+    assert stress <= 5.0 and 0.0 < shrunk <= 5.0
+    pos, r = settled.positions, settled.radii
+    slack = 0.05 * r
+    floor = (Z * pos[:, 0] + X * pos[:, 2] - X * Z) / np.hypot(X, Z)
+    assert np.all(floor > r - slack) and np.all(pos[:, 0] < X - r + slack) and np.all(pos[:, 2] < Z + r)
+    assert np.allclose(r, filled.radii * (1.0 - shrunk / 100.0), rtol=1e-3)  # the same grains, shrunk
+    assert settled.void_ratio > filled.void_ratio
 
 
 @pytest.fixture(scope="module")
