@@ -223,7 +223,8 @@ def fill_zone(tets, walls, diameters, s: GenerationSettings, log=None, comm=None
     of a template drawn by share and enlarged to its diameter (equal volume), in a random
     orientation; its enclosing sphere is placed as a sphere is, and it grows about its centre.
     ``settle``: the expansion's stress is let go in every zone, not only a closed one (the grains
-    shrunk until their mean stress is at most ``s.release_stress``), and the grains settle under
+    shrunk until their mean stress is at most ``s.release_stress``, or ``s.seat_stress`` if that is
+    smaller), and the grains settle under
     gravity with their material's own friction and rolling resistance (not the generation's):
     their stress at rest is their weight's, with the ratio of horizontal to vertical stress of a
     ground laid down under gravity (K0); otherwise a zone under a lid keeps the expansion's

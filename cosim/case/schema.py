@@ -165,7 +165,7 @@ class SpecimenSection(Section):
                     "their mean stress is 2 % of their weight's at the zone's bottom) and lets them settle under "
                     "gravity with their material's own friction: a ground laid down under its weight, whose "
                     "release loosens the packing where the expansion pressed it hard. rest_stress.csv gives "
-                    "K = sigma_h / sigma_v by depth (the tunnel's block: 0.85 and 0.75)")
+                    "K = sigma_h / sigma_v by depth (the tunnel's all-DEM block: 1.26 and 0.75)")
     void_ratio: float = Field(
         default=0.65, gt=0.3, lt=1.5,
         description="target void ratio e = V_voids/V_solids of the specimen [-]")
