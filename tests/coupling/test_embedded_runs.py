@@ -31,6 +31,7 @@ def test_two_ranks_fill_rest_and_load_the_same_model_bit_for_bit(one_rank, tmp_p
     assert json.loads((two / "summary.json").read_text())["ranks"] == 2
     assert (two / "series.csv").read_text() == (one / "series.csv").read_text()
     assert (two / "rest.csv").read_text() == (one / "rest.csv").read_text()
+    assert (two / "rest_stress.csv").read_text() == (one / "rest_stress.csv").read_text()
     for name in ("specimen.npz", "loading_start.npz", "final_packing.npz"):
         with np.load(one / name) as a, np.load(two / name) as b:
             for key in a.files:
