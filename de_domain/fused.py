@@ -65,7 +65,7 @@ from .contact_laws import (
     released_energy,
 )
 from .integrate import IntegrationTerms, integrate_block
-from .rigid import rotational_leapfrog, to_body, to_space
+from .rigid import LANES, N_W, W_INERTIA, W_MOMENTUM, W_OMEGA, W_QUAT, leapfrog_lanes, to_body, to_space
 from .state import (
     BOOK_ACCUMULATED,
     BOOK_FIRST,
@@ -357,16 +357,6 @@ def _clump_dof(f, v, m, inv, dt, local_damping, viscous_damping):
 
 
 @njit(cache=True, error_model="numpy")
-def _damping_torque(t, w, big_l, local_damping, viscous_damping):
-    """A clump's background damping torque on one space component: −α_v L − α_b |τ| sign(ω)
-    (the spheres' −α_v I ω − α_b |τ| sign(ω), docs/design.md §2.13, with I ω = L)."""
-    damp = -viscous_damping * big_l
-    if local_damping > 0.0 and w != 0.0:
-        damp -= local_damping * abs(t) * np.sign(w)
-    return damp
-
-
-@njit(cache=True, error_model="numpy")
 def _place_member(pos, vel, accel, angvel, ref_pos, row, x, y, z, vx, vy, vz, wx, wy, wz, dt):
     """A clump's member moved to (x, y, z) with velocity (vx, vy, vz) and spin (wx, wy, wz); its
     acceleration (v^{n+½} − v^{n−½})/Δt. Returns its squared displacement since the last list
@@ -403,18 +393,68 @@ def collect_member_loads(particles, clumps):
             load[k, MEMBER_POSITION + d] = pos[row, d]
 
 
+CBLOCK = LANES  # clumps per parallel work item (one work array of the rotation)
+
+# The clumps' own fields in the rotation's work array of a block (de_domain.rigid: W_* and these)
+RW_TORQUE = N_W        # the contacts' torque τⁿ (3 fields)
+RW_KINETIC = N_W + 3   # out: ½ L_bᵀ I⁻¹ L_b at tⁿ, L = (L^{n−½} + L^{n+½})/2 at qⁿ
+RW_DAMPING = N_W + 4   # out: the damping torque's work over the step
+N_RW = N_W + 5
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sign(x):
+    """sign x (0 at 0), by selection (vectorisable, unlike np.sign's call)."""
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _damping_torque(t, w, big_l, local_damping, viscous_damping):
+    """A clump's background damping torque on one space component: −α_v L − α_b |τ| sign(ω)
+    (the spheres' −α_v I ω − α_b |τ| sign(ω), docs/design.md §2.13, with I ω = L)."""
+    return -viscous_damping * big_l - local_damping * abs(t) * _sign(w)
+
+
+@njit(cache=True, error_model="numpy")
+def _kick_clumps(w, count, dt, local_damping, viscous_damping):
+    """The angular-momentum half of the clumps' step, for the first ``count`` clumps of the work
+    array ``w``: L^{n+½} = L^{n−½} + (τ + τ_d) Δt with the background damping
+    τ_d = −α_v L − α_b |τ| sign(ω) per space component, ω at tⁿ estimated from L^{n−½} + ½ Δt τ
+    (the sign the local damping opposes; YADE's NewtonIntegrator does the same: with ω^{n−½} a
+    clump's fast rotational mode is amplified); the kinetic energy at tⁿ with
+    L = (L^{n−½} + L^{n+½})/2 at qⁿ, and the damping's work with that ω. No branch and no call:
+    the loop is vectorised."""
+    for c in range(count):
+        q = (w[W_QUAT * CBLOCK + c], w[(W_QUAT + 1) * CBLOCK + c], w[(W_QUAT + 2) * CBLOCK + c],
+             w[(W_QUAT + 3) * CBLOCK + c])
+        lx = w[W_MOMENTUM * CBLOCK + c]; ly = w[(W_MOMENTUM + 1) * CBLOCK + c]; lz = w[(W_MOMENTUM + 2) * CBLOCK + c]
+        tx = w[RW_TORQUE * CBLOCK + c]; ty = w[(RW_TORQUE + 1) * CBLOCK + c]; tz = w[(RW_TORQUE + 2) * CBLOCK + c]
+        i1 = w[W_INERTIA * CBLOCK + c]; i2 = w[(W_INERTIA + 1) * CBLOCK + c]; i3 = w[(W_INERTIA + 2) * CBLOCK + c]
+        bx, by, bz = to_body(q, lx + 0.5 * dt * tx, ly + 0.5 * dt * ty, lz + 0.5 * dt * tz)
+        wx, wy, wz = to_space(q, bx / i1, by / i2, bz / i3)
+        dx = _damping_torque(tx, wx, lx, local_damping, viscous_damping)
+        dy = _damping_torque(ty, wy, ly, local_damping, viscous_damping)
+        dz = _damping_torque(tz, wz, lz, local_damping, viscous_damping)
+        nx = lx + (tx + dx) * dt; ny = ly + (ty + dy) * dt; nz = lz + (tz + dz) * dt
+        bx, by, bz = to_body(q, 0.5 * (lx + nx), 0.5 * (ly + ny), 0.5 * (lz + nz))
+        mx, my, mz = to_space(q, bx / i1, by / i2, bz / i3)
+        w[RW_KINETIC * CBLOCK + c] = 0.5 * (bx * bx / i1 + by * by / i2 + bz * bz / i3)
+        w[RW_DAMPING * CBLOCK + c] = -(dx * mx + dy * my + dz * mz) * dt
+        w[W_MOMENTUM * CBLOCK + c] = nx; w[(W_MOMENTUM + 1) * CBLOCK + c] = ny; w[(W_MOMENTUM + 2) * CBLOCK + c] = nz
+
+
 @njit(cache=True, error_model="numpy")
 def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
-    """Advance the clumps ``clumps.active[first:last]`` by one step from their members' loads (``member_load``,
-    docs/design.md §2.19), member by member in template order, then place their members this
-    process holds (``member_row`` ≥ 0). Per clump:
-    F = M g + Σ F_m, τ = Σ (x_m − x_c) × F_m + T_m; the centre by the spheres' leapfrog with background damping
-    (:func:`de_domain.integrate.leapfrog_dof`); the orientation by NO_SQUISH
-    (:func:`de_domain.rigid.rotational_leapfrog`) under τ + τ_d, τ_d = −α_v L − α_b |τ| sign(ω)
-    per space component; then each member at x_c + R(q) b_m with v_c + ω × R(q) b_m and ω, its
-    acceleration (v^{n+½} − v^{n−½})/Δt. ``terms[c]``: clump c's terms (``state.I_*``: kinetic
-    energies at tⁿ with the mean of the half-step momenta, gravity, damping); ``shift[c]``: its
-    placed members' largest squared displacement since the last list build."""
+    """Advance the clumps ``clumps.active[first:last]`` (at most ``CBLOCK``) by one step from their
+    members' loads (``member_load``, docs/design.md §2.19), member by member in template order, then
+    place their members this process holds (``member_row`` ≥ 0). Per clump:
+    F = M g + Σ F_m, τ = Σ (x_m − x_c) × F_m + T_m; the centre by the spheres' leapfrog with
+    background damping (:func:`de_domain.integrate.leapfrog_dof`); the orientation by
+    :func:`_kick_clumps` and NO_SQUISH (:func:`de_domain.rigid.leapfrog_lanes`), the block's clumps
+    together; then each member at x_c + R(q) b_m with v_c + ω × R(q) b_m and ω, its acceleration
+    (v^{n+½} − v^{n−½})/Δt. ``terms[c]``: clump c's terms (``state.I_*``: kinetic energies at tⁿ
+    with the mean of the half-step momenta, gravity, damping); ``shift[c]``: its placed members'
+    largest squared displacement since the last list build."""
     dt = settings.dt
     gravity = settings.gravity
     local_damping = settings.local_damping
@@ -435,9 +475,10 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
     member_row = clumps.member_row
     member_body = clumps.member_body
     active = clumps.active
+    w = np.empty(N_RW * CBLOCK)
     for a in range(first, last):
         c = active[a]
-        d2max = 0.0
+        lane = a - first
         ke_t = 0.0
         potential = 0.0
         damping = 0.0
@@ -467,31 +508,33 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
             damping -= damped
             velocity[c, d] = v_new
             centre[c, d] += dt * v_new
-        q = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
-        inertia = (moments[c, 0], moments[c, 1], moments[c, 2])
-        lx = angmom[c, 0]; ly = angmom[c, 1]; lz = angmom[c, 2]
-        # ω at tⁿ, estimated from L^{n−½} + ½ Δt τ (the sign the local damping opposes; YADE's
-        # NewtonIntegrator does the same: with ω^{n−½} a clump's fast rotational mode is amplified)
-        bx, by, bz = to_body(q, lx + 0.5 * dt * tx, ly + 0.5 * dt * ty, lz + 0.5 * dt * tz)
-        wx, wy, wz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])
-        dx = _damping_torque(tx, wx, lx, local_damping, viscous_damping)
-        dy = _damping_torque(ty, wy, ly, local_damping, viscous_damping)
-        dz = _damping_torque(tz, wz, lz, local_damping, viscous_damping)
-        q_new, l_new, w_new = rotational_leapfrog(q, (lx, ly, lz), (tx + dx, ty + dy, tz + dz), inertia, dt)
-        # at tⁿ: L = (L^{n−½} + L^{n+½})/2 at qⁿ
-        nx, ny, nz = l_new
-        bx, by, bz = to_body(q, 0.5 * (lx + nx), 0.5 * (ly + ny), 0.5 * (lz + nz))
-        terms[c, I_KINETIC_ROTATIONAL] = 0.5 * (bx * bx / inertia[0] + by * by / inertia[1] + bz * bz / inertia[2])
-        mx, my, mz = to_space(q, bx / inertia[0], by / inertia[1], bz / inertia[2])
         terms[c, I_KINETIC_TRANSLATIONAL] = ke_t
         terms[c, I_GRAVITY] = potential
-        terms[c, I_BACKGROUND_DAMPING] = damping - (dx * mx + dy * my + dz * mz) * dt
+        terms[c, I_BACKGROUND_DAMPING] = damping
         terms[c, I_BOUNDARY_WORK] = 0.0
-        quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3] = q_new
-        angmom[c, 0] = nx; angmom[c, 1] = ny; angmom[c, 2] = nz
-        ox, oy, oz = w_new
+        for k in range(4):
+            w[(W_QUAT + k) * CBLOCK + lane] = quat[c, k]
+        for k in range(3):
+            w[(W_MOMENTUM + k) * CBLOCK + lane] = angmom[c, k]
+            w[(W_INERTIA + k) * CBLOCK + lane] = moments[c, k]
+        w[RW_TORQUE * CBLOCK + lane] = tx; w[(RW_TORQUE + 1) * CBLOCK + lane] = ty
+        w[(RW_TORQUE + 2) * CBLOCK + lane] = tz
+    _kick_clumps(w, last - first, dt, local_damping, viscous_damping)
+    leapfrog_lanes(w, last - first, dt)
+    for a in range(first, last):
+        c = active[a]
+        lane = a - first
+        terms[c, I_KINETIC_ROTATIONAL] = w[RW_KINETIC * CBLOCK + lane]
+        terms[c, I_BACKGROUND_DAMPING] += w[RW_DAMPING * CBLOCK + lane]
+        for k in range(4):
+            quat[c, k] = w[(W_QUAT + k) * CBLOCK + lane]
+        for k in range(3):
+            angmom[c, k] = w[(W_MOMENTUM + k) * CBLOCK + lane]
+        q_new = (quat[c, 0], quat[c, 1], quat[c, 2], quat[c, 3])
+        ox = w[W_OMEGA * CBLOCK + lane]; oy = w[(W_OMEGA + 1) * CBLOCK + lane]; oz = w[(W_OMEGA + 2) * CBLOCK + lane]
         cx = centre[c, 0]; cy = centre[c, 1]; cz = centre[c, 2]
         vx = velocity[c, 0]; vy = velocity[c, 1]; vz = velocity[c, 2]
+        d2max = 0.0
         for k in range(start[c], start[c + 1]):
             if member_row[k] < 0:  # another rank's: placed there
                 continue
@@ -503,7 +546,6 @@ def _advance_clumps(first, last, settings, particles, clumps, terms, shift):
         shift[c] = d2max
 
 
-CBLOCK = 64  # clumps per parallel work item
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
