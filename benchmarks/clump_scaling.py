@@ -19,8 +19,8 @@ r = 1 mm, μ = 0.5, restitution 0.5), local damping 0.1. Settled for ``SETTLE_TI
 engine's critical step (a rod's members take the rod's critical mass, docs/design.md §2.19: its
 Δt is the smaller, and it takes more steps).
 
-Each configuration is a worker process (``mpirun -n R`` for R > 1 ranks, 1 Numba thread a rank):
-one untimed step, then ``--steps`` steps timed; ``--repeats`` rounds, every configuration in each
+Each configuration is a worker process (``mpirun -n R`` for R > 1 ranks, ``--threads`` Numba threads
+a rank, 1 by default): one untimed step, then ``--steps`` steps timed; ``--repeats`` rounds, every configuration in each
 (interleaved). Printed: member-sphere-steps/s (spheres × steps / s; median and each round),
 contacts per sphere (pairs × 2 / spheres; pairs within a rod are not contacts), with clumps over
 ranks the share of the time in the gather of the members' loads (``Domain.share_member_loads``)
@@ -268,6 +268,7 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=1000)
     ap.add_argument("--repeats", type=int, default=2, help="rounds, every configuration in each (median)")
     ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--threads", type=int, default=1, help="Numba threads a rank")
     ap.add_argument("--liggghts", action="store_true", help="LIGGGHTS fix multisphere on rods in each round too")
     ap.add_argument("--force", action="store_true", help="make the beds again")
     ap.add_argument("--worker", choices=["spheres", "clumps"], help=argparse.SUPPRESS)
@@ -289,13 +290,14 @@ def main(argv=None):
                     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", kind, "--steps", str(args.steps)]
                     if ranks > 1:
                         cmd = ["mpirun", "--bind-to", "none", "-n", str(ranks)] + cmd
-                    env = mpi_launch.mpi_env(NUMBA_NUM_THREADS=1)
+                    env = mpi_launch.mpi_env(NUMBA_NUM_THREADS=args.threads)
                     results.setdefault((kind, ranks), []).append(mpi_launch.run_json(cmd, "RESULT ", env=env,
                                                                                      timeout=1800))
                 if args.liggghts:
                     dt = results[("clumps", ranks)][-1]["dt"]
                     results.setdefault(("LIGGGHTS rods", ranks), []).append(liggghts(tmp, ranks, args.steps, dt))
-    print(f"member-sphere-steps/s, 1 thread a rank, {args.steps} steps, median of {args.repeats} interleaved rounds")
+    print(f"member-sphere-steps/s, {args.threads} thread(s) a rank, {args.steps} steps, "
+          f"median of {args.repeats} interleaved rounds")
     for (kind, ranks), rows in results.items():
         rate = statistics.median(r["rate"] for r in rows)
         rates = ", ".join(f"{r['rate']:.3e}" for r in rows)
