@@ -165,12 +165,19 @@ def _rotate_about_lanes(w, count, k, t):
 
 
 @njit(cache=True, error_model="numpy")
+def _free_rotation_lanes(w, count, dt):
+    """One NO_SQUISH step of the first ``count`` torque-free bodies of the work array ``w``:
+    R_3(Δt/2) R_2(Δt/2) R_1(Δt) R_2(Δt/2) R_3(Δt/2), q not renormalised."""
+    for j in range(5):  # one call site, its axis not a constant: one compiled specialisation
+        _rotate_about_lanes(w, count, abs(j - 2) + 1, dt if j == 2 else 0.5 * dt)
+
+
+@njit(cache=True, error_model="numpy")
 def leapfrog_lanes(w, count, dt):
     """The rotation of one leapfrog step (module docstring) of the first ``count`` bodies of the
     work array ``w`` (fields ``W_*``), their angular momenta already kicked to L^{n+½}: q^{n+1} the
-    NO_SQUISH step R_3(Δt/2) R_2(Δt/2) R_1(Δt) R_2(Δt/2) R_3(Δt/2) of (qⁿ, p(qⁿ, L^{n+½})),
-    renormalised, and ω = R I⁻¹ Rᵀ L^{n+½} at q^{n+1} (the rate the members move with over the
-    next step)."""
+    NO_SQUISH step of (qⁿ, p(qⁿ, L^{n+½})), renormalised, and ω = R I⁻¹ Rᵀ L^{n+½} at q^{n+1} (the
+    rate the members move with over the next step)."""
     for c in range(count):
         q = (w[W_QUAT * LANES + c], w[(W_QUAT + 1) * LANES + c], w[(W_QUAT + 2) * LANES + c],
              w[(W_QUAT + 3) * LANES + c])
@@ -178,12 +185,7 @@ def leapfrog_lanes(w, count, dt):
             w[(W_CONJUGATE + 3) * LANES + c] = conjugate_momentum(q, w[W_MOMENTUM * LANES + c],
                                                                   w[(W_MOMENTUM + 1) * LANES + c],
                                                                   w[(W_MOMENTUM + 2) * LANES + c])
-    half = 0.5 * dt
-    _rotate_about_lanes(w, count, 3, half)
-    _rotate_about_lanes(w, count, 2, half)
-    _rotate_about_lanes(w, count, 1, dt)
-    _rotate_about_lanes(w, count, 2, half)
-    _rotate_about_lanes(w, count, 3, half)
+    _free_rotation_lanes(w, count, dt)
     for c in range(count):
         q0 = w[W_QUAT * LANES + c]; q1 = w[(W_QUAT + 1) * LANES + c]
         q2 = w[(W_QUAT + 2) * LANES + c]; q3 = w[(W_QUAT + 3) * LANES + c]
@@ -212,15 +214,10 @@ def _one_body(q, p, inertia):
 
 @njit(cache=True, error_model="numpy")
 def free_rotation(q, p, inertia, dt):
-    """One NO_SQUISH step of one torque-free body: R_3(Δt/2) R_2(Δt/2) R_1(Δt) R_2(Δt/2) R_3(Δt/2)
-    (``inertia``: the principal moments I1, I2, I3). Returns (q, p), q renormalised."""
+    """One NO_SQUISH step of one torque-free body (``inertia``: the principal moments I1, I2, I3),
+    by :func:`_free_rotation_lanes` on a block of one. Returns (q, p), q renormalised."""
     w = _one_body(q, p, inertia)
-    half = 0.5 * dt
-    _rotate_about_lanes(w, 1, 3, half)
-    _rotate_about_lanes(w, 1, 2, half)
-    _rotate_about_lanes(w, 1, 1, dt)
-    _rotate_about_lanes(w, 1, 2, half)
-    _rotate_about_lanes(w, 1, 3, half)
+    _free_rotation_lanes(w, w.size // (N_W * LANES), dt)  # 1, not a constant: no specialisation of its own
     q0 = w[W_QUAT * LANES]; q1 = w[(W_QUAT + 1) * LANES]; q2 = w[(W_QUAT + 2) * LANES]; q3 = w[(W_QUAT + 3) * LANES]
     norm = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     return ((q0 / norm, q1 / norm, q2 / norm, q3 / norm),
@@ -230,15 +227,15 @@ def free_rotation(q, p, inertia, dt):
 
 @njit(cache=True, error_model="numpy")
 def rotational_leapfrog(q, angular_momentum, torque, inertia, dt):
-    """One leapfrog step of the rotation of one body (module docstring), by :func:`leapfrog_lanes`:
-    L^{n+½} = L^{n−½} + τⁿ Δt (space frame), then qⁿ → q^{n+1}. Returns (q^{n+1}, L^{n+½}, ω), ω the
-    space-frame angular velocity R I⁻¹ Rᵀ L^{n+½} at the new orientation."""
+    """One leapfrog step of the rotation of one body (module docstring), by :func:`leapfrog_lanes`
+    on a block of one: L^{n+½} = L^{n−½} + τⁿ Δt (space frame), then qⁿ → q^{n+1}. Returns
+    (q^{n+1}, L^{n+½}, ω), ω the space-frame angular velocity R I⁻¹ Rᵀ L^{n+½} at the new orientation."""
     w = _one_body(q, (0.0, 0.0, 0.0, 0.0), inertia)
     lx = angular_momentum[0] + torque[0] * dt
     ly = angular_momentum[1] + torque[1] * dt
     lz = angular_momentum[2] + torque[2] * dt
     w[W_MOMENTUM * LANES] = lx; w[(W_MOMENTUM + 1) * LANES] = ly; w[(W_MOMENTUM + 2) * LANES] = lz
-    leapfrog_lanes(w, 1, dt)
+    leapfrog_lanes(w, w.size // (N_W * LANES), dt)  # 1, not a constant: the engine's specialisation
     return ((w[W_QUAT * LANES], w[(W_QUAT + 1) * LANES], w[(W_QUAT + 2) * LANES], w[(W_QUAT + 3) * LANES]),
             (lx, ly, lz), (w[W_OMEGA * LANES], w[(W_OMEGA + 1) * LANES], w[(W_OMEGA + 2) * LANES]))
 
