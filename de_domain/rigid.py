@@ -55,9 +55,9 @@ N_W = 17
 def sin_cos(z):
     """(cos z, sin z) without a library call or a branch, so that a loop of it is vectorised:
     Cody & Waite's reduction r = z − k π/2 (k the nearest integer, π/2 in two parts so that k π/2
-    is subtracted without rounding for |z| < 10⁵), |r| ≤ π/4, the Taylor series of sin r and
-    cos r to r¹⁷ and r¹⁶ (truncation below (π/4)¹⁸/18! < 2·10⁻¹⁸), then the quadrant k mod 4.
-    Within 2 ulp of the math library's for |z| < 10⁵ (tested)."""
+    is subtracted without rounding for z within ±10⁵), r within ±π/4, the Taylor series of sin r
+    and cos r to r¹⁷ and r¹⁶ (truncation below (π/4)¹⁸/18! < 2·10⁻¹⁸), then the quadrant k mod 4.
+    Within 2 ulp of the math library's for z within ±10⁵ (tested)."""
     k = (z * _TWO_OVER_PI + _ROUNDER) - _ROUNDER
     r = (z - k * _HALF_PI_HI) - k * _HALF_PI_LO
     r2 = r * r
