@@ -655,6 +655,8 @@ def simulate(prepared):
         return None
     from de_domain.packing import save_packing
     save_packing(out_dir / "final_packing.npz", grains.pos, grains.radius)
+    if model.engine.clumps.count:  # every clump on every rank: which clump each sphere is in, the clumps' state
+        np.savez(out_dir / "final_clumps.npz", **model.engine.clumps.arrays())
     with np.load(out_dir / LOADING_START) as loaded:
         start = loaded["position"]
         fe_motion = None if fe_end is None else (fe_end[0], fe_end[1] - loaded["fe_displacement"])

@@ -3,12 +3,15 @@ triaxial) gives target results (thesis §1.4: contact stiffness, friction and ro
 measured; they are fitted so that a simulated lab test matches the real one).
 
 A calibration file (``cosim.case.calibration.CalibrationFile``) names a direct_shear or triaxial case,
-targets (a quantity of ``summary.json`` at a stated σ_n or σ₃, with a tolerance) and up to
-four parameters of the sand material with bounds. The search, step by step:
+targets (a quantity of ``summary.json`` at a stated σ_n or σ₃, with a tolerance; a target may
+name its own case, such as a loose specimen's beside the dense one) and up to four parameters
+with bounds: of the sand material, or the grains' aspect ratio (a rod of two equal spheres,
+:func:`cosim.case.calibration.rod_members`). The search, step by step:
 
-1. **One specimen.** The case's specimen is generated once, as written, and reused by every
-   evaluation (as in ``cosim series``): only the test's micro-parameters change.
-2. **An evaluation** is one run of the case per distinct target stress with one parameter set.
+1. **One specimen a case and shape.** Each case's specimen is generated once, as written, and
+   reused by every evaluation (as in ``cosim series``): only the test's micro-parameters
+   change. An aspect ratio changes the grains: each value makes its own specimen.
+2. **An evaluation** is one run per distinct (case, target stress) with one parameter set.
    Its misfit is Σ ((achieved − value) / tolerance)²; the targets are reached when every
    ``|achieved − value| ≤ tolerance``.
 3. **Reachability.** The two corners of the bounds (all parameters at their lower, then at
@@ -85,7 +88,10 @@ def misfit(achieved, targets):
 
 
 def target_label(t):
-    return f"{t.quantity}@{t.normal_stress / 1e3:g}kPa"
+    """A target's column in evaluations.csv: quantity@σ, with the case's stem when the target
+    names its own case."""
+    where = "" if t.case is None else f"{Path(t.case).stem}@"
+    return f"{t.quantity}@{where}{t.normal_stress / 1e3:g}kPa"
 
 
 class EvaluationLog:
@@ -124,16 +130,18 @@ class _Stop(Exception):
         self.status, self.message = status, message
 
 
-def calibrate(spec, evaluate, log_path, progress=say):
-    """Run the search of the module docstring. ``evaluate(parameters, normal_stress, label)``
-    returns a run's summary (a dict with the target quantities); ``label`` names the
+def calibrate(spec, evaluate, log_path, progress=say, cases=None):
+    """Run the search of the module docstring. ``evaluate(parameters, case, normal_stress,
+    label)`` returns a run's summary (a dict with the target quantities); ``case`` is the
+    target's entry of ``cases`` (one a target; default None for each), ``label`` names the
     evaluation (its run folder). Returns a :class:`Calibration`."""
     from scipy.optimize import minimize
     names = [p.name for p in spec.parameters]
     lower = np.array([p.lower for p in spec.parameters])
     upper = np.array([p.upper for p in spec.parameters])
     targets = spec.targets
-    stresses = sorted({t.normal_stress for t in targets})
+    cases = [None] * len(targets) if cases is None else list(cases)
+    tests = list(dict.fromkeys((c, t.normal_stress) for c, t in zip(cases, targets, strict=True)))
     log = EvaluationLog(log_path, names, targets)
     evaluations = []
     t_start = time.perf_counter()
@@ -150,8 +158,9 @@ def calibrate(spec, evaluate, log_path, progress=say):
             achieved, clock = log.memo[x]
         else:
             t0 = time.perf_counter()
-            summaries = {s: evaluate(parameters, s, f"{index:03d}") for s in stresses}
-            achieved = [float(quantity_of(summaries[t.normal_stress], t.quantity)) for t in targets]
+            summaries = {test: evaluate(parameters, *test, f"{index:03d}") for test in tests}
+            achieved = [float(quantity_of(summaries[c, t.normal_stress], t.quantity))
+                        for c, t in zip(cases, targets, strict=True)]
             clock = time.perf_counter() - t0
         e = Evaluation(index, parameters, achieved, misfit(achieved, targets),
                        all(abs(a - t.value) <= t.tolerance for a, t in zip(achieved, targets, strict=True)), clock)
@@ -216,44 +225,51 @@ def _report_progress(progress, e, evaluations, targets, budget, t_start):
 
 # --------------------------------------------------------------------------- running the case
 class LabEvaluator:
-    """Runs a direct_shear or triaxial case with the sand's parameters overridden (``--set``)
-    at one stress (σ_n or σ₃), in ``out_root/<label>/<σ>kPa``; the specimen is generated once
-    into ``out_root/specimen.npz`` and reused. A finished run with the same resolved case is
-    read back, not rerun."""
+    """Runs direct_shear or triaxial cases with the parameters set (``--set``, :func:`overrides`)
+    at one stress (σ_n or σ₃), in ``out_root/<label>/<case stem>/<σ>kPa``; a case's specimen
+    is generated once for each grain shape into ``out_root/specimen_<case stem>[_ar<A>].npz``
+    and reused. A finished run with the same resolved case is read back, not rerun."""
 
-    def __init__(self, case_path, out_root):
-        from cosim.case import load_case
-        self.case_path, self.out_root = Path(case_path), Path(out_root)
-        case, _ = load_case(self.case_path)
-        self.kind = case.case.kind
-        names = [m.name for m in case.dem.materials]
-        self.sand = names.index(getattr(case, self.kind).sand_material)
+    def __init__(self, out_root):
+        self.out_root = Path(out_root)
 
-    def overrides(self, parameters):
-        return [f"dem.materials[{self.sand}].{k}={v!r}" for k, v in parameters.items()]
-
-    def __call__(self, parameters, normal_stress, label):
+    def __call__(self, parameters, case_path, normal_stress, label):
         from cosim.apps import Prepared
         from cosim.case import load_case
         from cosim.lab.series import STRESS_KEY, finished, lab_app
-        app = lab_app(self.kind)
-        stress = f"{STRESS_KEY[self.kind]}={float(normal_stress)!r}"
-        case, resolved = load_case(self.case_path, self.overrides(parameters) + [stress])
-        out_dir = self.out_root / label / f"{normal_stress / 1e3:g}kPa"
+        case_path = Path(case_path)
+        kind = load_case(case_path)[0].case.kind
+        stress = f"{STRESS_KEY[kind]}={float(normal_stress)!r}"
+        case, resolved = load_case(case_path, overrides(case_path, parameters) + [stress])
+        out_dir = self.out_root / label / case_path.stem / f"{normal_stress / 1e3:g}kPa"
         out_dir.mkdir(parents=True, exist_ok=True)
+        shape = f"_ar{parameters['aspect_ratio']!r}" if "aspect_ratio" in parameters else ""
         if not finished(out_dir, resolved):
-            built = app.prepare(case, self.case_path, out_dir, False)
-            app.run(Prepared(case, resolved, self.case_path, out_dir, False, built),
-                    specimen_cache=self.out_root / "specimen.npz")
+            built = lab_app(kind).prepare(case, case_path, out_dir, False)
+            lab_app(kind).run(Prepared(case, resolved, case_path, out_dir, False, built),
+                              specimen_cache=self.out_root / f"specimen_{case_path.stem}{shape}.npz")
         return json.loads((out_dir / "summary.json").read_text())
 
 
-def confirm(spec, confirm_path, parameters, out_root):
-    """The best parameters on the confirmation case at every target σ_n: the achieved
-    value per target."""
-    evaluate = LabEvaluator(confirm_path, out_root)
-    summaries = {s: evaluate(parameters, s, "best") for s in sorted({t.normal_stress for t in spec.targets})}
-    return [float(quantity_of(summaries[t.normal_stress], t.quantity)) for t in spec.targets]
+def overrides(case_path, parameters):
+    """The ``--set`` overrides that give the case at ``case_path`` the ``parameters``: the sand
+    material's micro-parameters; the aspect ratio as its one [[dem.clumps]] template, a rod of
+    two equal spheres."""
+    from cosim.case import load_case
+    from cosim.case.calibration import rod_members
+    case, _ = load_case(case_path)
+    names = [m.name for m in case.dem.materials]
+    sand = names.index(getattr(case, case.case.kind).sand_material)
+    return [f"dem.clumps[0].members={rod_members(v)!r}" if k == "aspect_ratio" else
+            f"dem.materials[{sand}].{k}={v!r}" for k, v in parameters.items()]
+
+
+def confirm(setup, parameters, out_root):
+    """The best parameters on each target's confirmation case (``setup.confirm_cases``) at its
+    stress: the achieved value per target, None for a target without one."""
+    evaluate = LabEvaluator(out_root)
+    return [None if c is None else float(quantity_of(evaluate(parameters, c, t.normal_stress, "best"), t.quantity))
+            for c, t in zip(setup.confirm_cases, setup.spec.targets, strict=True)]
 
 
 def calibrated_case_text(case_path, overrides, note):
@@ -273,28 +289,30 @@ def calibrated_case_text(case_path, overrides, note):
 
 
 # --------------------------------------------------------------------------- report
-def write_report(out_root, spec, outcome, confirmed=None, calibrated_from=None):
-    """``report.json``, ``report.md`` and ``calibration.png`` in ``out_root``."""
-    best = outcome.best
+def write_report(out_root, setup, outcome, confirmed=None, calibrated=()):
+    """``report.json``, ``report.md`` and ``calibration.png`` in ``out_root``: per target its
+    case, the searched case's value and the confirmation's (``confirmed``: one a target, None
+    where none ran); ``calibrated``: the case files written."""
+    spec, best = setup.spec, outcome.best
     rows = []
     for i, t in enumerate(spec.targets):
         rows.append({"quantity": t.quantity, "normal_stress": t.normal_stress, "target": t.value,
-                     "tolerance": t.tolerance, "searched_case": best.achieved[i],
+                     "tolerance": t.tolerance, "case": Path(setup.cases[i]).stem, "searched_case": best.achieved[i],
                      "confirm_case": None if confirmed is None else confirmed[i]})
     report = {"status": outcome.status, "message": outcome.message, "evaluations": len(outcome.evaluations),
               "best_evaluation": best.index, "parameters": best.parameters, "misfit": best.misfit,
               "bounds": {p.name: [p.lower, p.upper] for p in spec.parameters}, "targets": rows,
               "wall_clock_s": sum(e.wall_clock_s for e in outcome.evaluations),
-              "calibrated_case": calibrated_from}
+              "calibrated_cases": list(calibrated)}
     atomic_write_text(out_root / "report.json", json.dumps(report, indent=2))
     lines = [f"# Calibration: {outcome.status}", "", outcome.message, "",
              f"Best of {len(outcome.evaluations)} evaluations (no. {best.index}): "
              + ", ".join(f"{k} = {v:.4g}" for k, v in best.parameters.items()), "",
-             "| quantity | σ_n [kPa] | target | searched case | confirm case |", "|---|---|---|---|---|"]
+             "| quantity | case | σ [kPa] | target | searched case | confirm case |", "|---|---|---|---|---|---|"]
     for r in rows:
         c = "-" if r["confirm_case"] is None else f"{r['confirm_case']:.4g}"
-        lines.append(f"| {r['quantity']} | {r['normal_stress'] / 1e3:g} | {r['target']:g} ± {r['tolerance']:g} | "
-                     f"{r['searched_case']:.4g} | {c} |")
+        lines.append(f"| {r['quantity']} | {r['case']} | {r['normal_stress'] / 1e3:g} | {r['target']:g} ± "
+                     f"{r['tolerance']:g} | {r['searched_case']:.4g} | {c} |")
     atomic_write_text(out_root / "report.md", "\n".join(lines) + "\n")
     plot_history(out_root / "calibration.png", spec, outcome)
     return report
@@ -337,26 +355,29 @@ def plot_history(path, spec, outcome):
 def run_calibration(calibration_path, out_root, confirm_runs=True):
     """``cosim calibrate``: validate, search, confirm, report; returns the Calibration."""
     from cosim.case.calibration import load_calibration
-    spec, case_path, confirm_path = load_calibration(calibration_path)
+    setup = load_calibration(calibration_path)
     out_root = Path(out_root)
-    outcome = calibrate(spec, LabEvaluator(case_path, out_root / "search"), out_root / "evaluations.csv")
+    outcome = calibrate(setup.spec, LabEvaluator(out_root / "search"), out_root / "evaluations.csv",
+                        cases=setup.cases)
     say(f"[calibrate] {outcome.status}: {outcome.message}")
     best = outcome.best
     confirmed = None
-    target_case = case_path
-    if outcome.status == "reached" and confirm_path is not None and confirm_runs:
-        say(f"[calibrate] confirming {best.parameters} on {confirm_path}")
-        confirmed = confirm(spec, confirm_path, best.parameters, out_root / "confirm")
-        target_case = confirm_path
-    calibrated = None
-    if outcome.status == "reached":
-        overrides = LabEvaluator(target_case, out_root).overrides(best.parameters)
-        note = (f"Calibrated by `cosim calibrate {calibration_path}` (see report.md next to this file):\n"
-                + "\n".join(f"  sand {k} = {v!r}" for k, v in best.parameters.items())
-                + f"\nfrom {Path(target_case).resolve()}")
-        calibrated = out_root / "calibrated.toml"
-        atomic_write_text(calibrated, calibrated_case_text(target_case, overrides, note))
-    report = write_report(out_root, spec, outcome, confirmed, str(calibrated) if calibrated else None)
+    if outcome.status == "reached" and confirm_runs and any(c is not None for c in setup.confirm_cases):
+        say(f"[calibrate] confirming {best.parameters} on "
+            f"{', '.join(sorted({str(c) for c in setup.confirm_cases if c is not None}))}")
+        confirmed = confirm(setup, best.parameters, out_root / "confirm")
+    written = []
+    if outcome.status == "reached":  # each case the result was last run on, with the parameters written in
+        finals = [c if confirmed is None or k is None else k
+                  for c, k in zip(setup.cases, setup.confirm_cases, strict=True)]
+        for n, case_path in enumerate(dict.fromkeys(finals)):
+            note = (f"Calibrated by `cosim calibrate {calibration_path}` (see report.md next to this file):\n"
+                    + "\n".join(f"  {k} = {v!r}" for k, v in best.parameters.items())
+                    + f"\nfrom {Path(case_path).resolve()}")
+            written.append(out_root / ("calibrated.toml" if n == 0 else f"calibrated_{Path(case_path).stem}.toml"))
+            atomic_write_text(written[-1], calibrated_case_text(case_path, overrides(case_path, best.parameters),
+                                                                 note))
+    report = write_report(out_root, setup, outcome, confirmed, [str(w) for w in written])
     say((out_root / "report.md").read_text())
     say(f"[calibrate] outputs: {out_root} (best misfit {report['misfit']:.3g})")
     return outcome

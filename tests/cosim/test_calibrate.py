@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cosim.case.calibration import CalibrationFile
@@ -17,7 +18,7 @@ RUNS = Path(__file__).resolve().parents[2] / "runs"
 
 def surrogate(calls=None):
     """φ_peak = 20° + 20° μ + 20° η_r and φ_res = 18° + 18° μ + 4° η_r at any σ_n."""
-    def evaluate(parameters, normal_stress, label):
+    def evaluate(parameters, case, normal_stress, label):
         if calls is not None:
             calls.append((dict(parameters), normal_stress))
         mu, eta = parameters["friction"], parameters.get("rolling_friction", 0.0)
@@ -62,10 +63,10 @@ def test_a_rerun_reads_every_evaluation_back_and_ends_the_same(tmp_path):
 def test_an_interrupted_search_continues_where_it_stopped(tmp_path):
     calls = []
 
-    def dies_after_five(parameters, normal_stress, label):
+    def dies_after_five(parameters, case, normal_stress, label):
         if len(calls) == 5:
             raise KeyboardInterrupt
-        return surrogate(calls)(parameters, normal_stress, label)
+        return surrogate(calls)(parameters, case, normal_stress, label)
 
     with pytest.raises(KeyboardInterrupt):
         calibrate(spec(THESIS, MU_ETA), dies_after_five, tmp_path / "e.csv", progress=lambda s: None)
@@ -99,6 +100,57 @@ def test_a_target_just_inside_a_bound_is_reached_and_no_parameter_set_is_run_twi
     assert len(set(sets)) == len(sets) == len(calls)
 
 
+def shaped_surrogate(calls):
+    """Dense and loose specimens of rods of aspect ratio A: φ_peak = 16° + 20° μ + 12° (A − 1)
+    dense, 8° + 20° μ + 6° (A − 1) loose, at any σ."""
+    def evaluate(parameters, case, normal_stress, label):
+        calls.append((case, normal_stress))
+        mu, shape = parameters["friction"], parameters["aspect_ratio"] - 1.0
+        base, gain = {"dense": (16.0, 12.0), "loose": (8.0, 6.0)}[case]
+        return {"peak_friction_angle_deg": base + 20 * mu + gain * shape}
+    return evaluate
+
+
+def test_dense_and_loose_targets_over_three_stresses_find_friction_and_shape(tmp_path):
+    """Targets 42° dense and 33° loose, each at 50, 100 and 200 kPa, on their own cases: the
+    search runs each (case, σ) once an evaluation and finds μ and A of the closed form
+    (16 + 20 μ + 12 s = 42, 8 + 20 μ + 6 s = 33: s = A − 1 = 1/6, μ = 1.2)."""
+    targets = [{"quantity": "peak_friction_angle_deg", "value": v, "tolerance": 0.2, "normal_stress": p,
+                "case": f"{c}.toml"} for c, v in (("dense", 42.0), ("loose", 33.0)) for p in (50e3, 100e3, 200e3)]
+    spec_ = CalibrationFile.model_validate({"case": "dense.toml", "budget": 60, "targets": targets, "parameters": [
+        {"name": "friction", "lower": 0.5, "upper": 1.5}, {"name": "aspect_ratio", "lower": 1.0, "upper": 2.0}]})
+    calls = []
+    cases = ["dense"] * 3 + ["loose"] * 3
+    outcome = calibrate(spec_, shaped_surrogate(calls), tmp_path / "e.csv", progress=lambda s: None, cases=cases)
+    assert outcome.status == "reached"
+    assert outcome.best.parameters["friction"] == pytest.approx(1.2, abs=0.02)
+    assert outcome.best.parameters["aspect_ratio"] == pytest.approx(1.0 + 1.0 / 6.0, abs=0.04)
+    assert len(calls) == 6 * len(outcome.evaluations)  # each (case, σ) once an evaluation
+    header = (tmp_path / "e.csv").read_text().splitlines()[0]
+    assert "peak_friction_angle_deg@loose@200kPa" in header and "peak_friction_angle_deg@dense@50kPa" in header
+
+
+def test_the_aspect_ratio_is_a_rod_of_two_spheres_of_that_length_over_width(tmp_path):
+    """overrides() writes the case's one template as two equal spheres whose union is A times
+    as long as it is wide, and the sand's friction into the sand material."""
+    from cosim.case import load_case
+    from cosim.case.validation import clump_templates
+    from cosim.lab.calibrate import overrides
+    case_path = tmp_path / "rods.toml"
+    case_path.write_text((RUNS / "direct_shear_small.toml").read_text().replace("[specimen]", ROD_SPECIMEN)
+                         + ROD_TEMPLATE)
+    for aspect in (1.0, 1.3, 2.0):
+        case, _ = load_case(case_path, overrides(case_path, {"aspect_ratio": aspect, "friction": 0.7}))
+        template, = clump_templates(case_path, case.dem)
+        ends = template.centres[:, 0] + template.radii * np.array([-1.0, 1.0])
+        assert np.ptp(ends) / (2.0 * template.radii.max()) == pytest.approx(aspect, rel=1e-12)
+        assert case.dem.materials[0].friction == 0.7
+
+
+ROD_SPECIMEN = '[specimen]\ngrains = "clumps"'
+ROD_TEMPLATE = "\n[[dem.clumps]]\nmembers = [[-0.5, 0, 0, 1], [0.5, 0, 0, 1]]\n"
+
+
 def test_the_budget_ends_the_search(tmp_path):
     outcome = calibrate(spec([("peak_friction_angle_deg", 37.3, 1e-9)], [("friction", 0.2, 1.2)], budget=6),
                         surrogate(), tmp_path / "e.csv", progress=lambda s: None)
@@ -125,6 +177,11 @@ TARGET = '[[targets]]\nquantity = "peak_friction_angle_deg"\nvalue = 42.0\ntoler
      'lower = 0.1\nupper = 1.0\n', "parameters[1].name"),
     ('[[parameters]]\nname = "friction"\nlower = 0.1\nupper = 1.0\n', "targets"),                     # missing
     (TARGET + '[[parameters]]\nname = "friction"\nlower = 0.1\nupper = 1.0\nbudget = 1\n', "parameters[0].budget"),
+    (TARGET + '[[parameters]]\nname = "aspect_ratio"\nlower = 1.0\nupper = 2.5\n', "parameters[0].upper"),
+    (TARGET + '[[parameters]]\nname = "aspect_ratio"\nlower = 0.8\nupper = 1.5\n', "parameters[0].lower"),
+    (TARGET + '[[parameters]]\nname = "aspect_ratio"\nlower = 1.0\nupper = 1.5\n', "case"),  # spheres: no shape
+    (TARGET + 'case = "missing.toml"\n[[parameters]]\nname = "friction"\nlower = 0.1\nupper = 1.0\n',
+     "targets[0].case"),
 ])
 def test_bad_calibration_files_get_one_clear_message(tmp_path, capsys, body, key):
     """The same message from `cosim check` and `cosim calibrate`, before anything runs."""
@@ -216,7 +273,7 @@ def test_calibrating_against_a_triaxial_target(tmp_path):
     row = report["targets"][0]
     assert report["status"] == "reached" and abs(row["searched_case"] - target) <= 1.0
     assert row["confirm_case"] == pytest.approx(row["searched_case"])
-    assert (out / "search" / "001" / "100kPa" / "triaxial.png").exists()
+    assert (out / "search" / "001" / "tx" / "100kPa" / "triaxial.png").exists()
     rerun = tmp_path / "rerun"
     assert main(["run", str(out / "calibrated.toml"), "--out", str(rerun)]) == 0
     again = json.loads((rerun / "summary.json").read_text())["peak_friction_angle_deg"]

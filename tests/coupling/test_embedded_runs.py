@@ -58,7 +58,8 @@ def test_clumped_grains_fill_rest_and_load_the_same_on_two_ranks(tmp_path):
     (three of the longest rods across): on 1 and 2 ranks the fill (clumps and their member
     spheres), the rest and the rows are the same to the last bit, and at rest the supports
     carry the grains' weight, each clump's once (the members carry their clump's mass); its
-    specimen.npz, read back as a packing file, rests the same to the last bit."""
+    specimen.npz, read back as a packing file, rests the same to the last bit; final_clumps.npz
+    holds the clumps at the end, the same on either."""
     case = tmp_path / "rods.toml"
     case.write_text((ROOT / CASE).read_text() + "\n[[dem.clumps]]\nmembers = [[-0.5, 0, 0, 1], [0.5, 0, 0, 1]]\n")
     sets = overrides({"embedded.parameters.Ly": 0.012, "specimen.grains": "clumps"})
@@ -72,6 +73,10 @@ def test_clumped_grains_fill_rest_and_load_the_same_on_two_ranks(tmp_path):
         for key in a.files:
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
         assert len(a["radii"]) == 2 * len(a["clump_template_of"])
+    with np.load(one / "final_clumps.npz") as a, np.load(two / "final_clumps.npz") as b:  # the clumps at the end
+        for key in a.files:
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        assert np.array_equal(np.bincount(a["member_of"]), np.full(len(a["mass"]), 2))
     summary = json.loads((one / "summary.json").read_text())
     assert summary["rest"]["support_force_over_weight"] == pytest.approx(1.0, abs=0.01)
     assert summary["fill"]["spheres"] == 2 * summary["fill"]["grains"]
