@@ -81,6 +81,10 @@ class CalibrationFile(Section):
                                   "is a run per target stress), relative to this file")
     confirm_case: Optional[str] = Field(
         default=None, description="a case of the same kind (full size) run once with the result, relative to this file")
+    set: list[str] = Field(
+        default_factory=list,
+        description="--set overrides (section.key=value, the value in TOML) applied to every case this file names, "
+                    "before the parameters: e.g. the grains made clumps in sphere cases")
     budget: int = Field(default=20, ge=3, le=500,
                         description="largest number of evaluations (parameter sets), the two bounds' corners included")
     targets: list[CalibrationTarget] = Field(min_length=1, max_length=20, description="[[targets]] tables")
@@ -111,7 +115,7 @@ def load_calibration(path) -> CalibrationSetup:
         if not case_path.is_file():
             raise CaseError(path, key, given, f"no case file {case_path} (a path relative to this calibration file)")
         if case_path not in checked:
-            case, _ = load_case(case_path)  # the case's own errors name the case file
+            case, _ = load_case(case_path, spec.set)  # the case's own errors name the case file
             kind = case.case.kind
             if kind not in ("direct_shear", "triaxial") or (kinds and kind != kinds[0]):
                 raise CaseError(path, key, given, f"must be a case of kind 'direct_shear' or 'triaxial', every case "

@@ -225,13 +225,14 @@ def _report_progress(progress, e, evaluations, targets, budget, t_start):
 
 # --------------------------------------------------------------------------- running the case
 class LabEvaluator:
-    """Runs direct_shear or triaxial cases with the parameters set (``--set``, :func:`overrides`)
-    at one stress (σ_n or σ₃), in ``out_root/<label>/<case stem>/<σ>kPa``; a case's specimen
-    is generated once for each grain shape into ``out_root/specimen_<case stem>[_ar<A>].npz``
-    and reused. A finished run with the same resolved case is read back, not rerun."""
+    """Runs direct_shear or triaxial cases with the calibration file's ``fixed`` overrides and
+    the parameters set (``--set``, :func:`overrides`) at one stress (σ_n or σ₃), in
+    ``out_root/<label>/<case stem>/<σ>kPa``; a case's specimen is generated once for each grain
+    shape into ``out_root/specimen_<case stem>[_ar<A>].npz`` and reused. A finished run with
+    the same resolved case is read back, not rerun."""
 
-    def __init__(self, out_root):
-        self.out_root = Path(out_root)
+    def __init__(self, out_root, fixed=()):
+        self.out_root, self.fixed = Path(out_root), list(fixed)
 
     def __call__(self, parameters, case_path, normal_stress, label):
         from cosim.apps import Prepared
@@ -240,7 +241,7 @@ class LabEvaluator:
         case_path = Path(case_path)
         kind = load_case(case_path)[0].case.kind
         stress = f"{STRESS_KEY[kind]}={float(normal_stress)!r}"
-        case, resolved = load_case(case_path, overrides(case_path, parameters) + [stress])
+        case, resolved = load_case(case_path, overrides(case_path, parameters, self.fixed) + [stress])
         out_dir = self.out_root / label / case_path.stem / f"{normal_stress / 1e3:g}kPa"
         out_dir.mkdir(parents=True, exist_ok=True)
         shape = f"_ar{parameters['aspect_ratio']!r}" if "aspect_ratio" in parameters else ""
@@ -251,23 +252,23 @@ class LabEvaluator:
         return json.loads((out_dir / "summary.json").read_text())
 
 
-def overrides(case_path, parameters):
-    """The ``--set`` overrides that give the case at ``case_path`` the ``parameters``: the sand
-    material's micro-parameters; the aspect ratio as its one [[dem.clumps]] template, a rod of
-    two equal spheres."""
+def overrides(case_path, parameters, fixed=()):
+    """The ``--set`` overrides that give the case at ``case_path`` the calibration file's
+    ``fixed`` ones, then the ``parameters``: the sand material's micro-parameters; the aspect
+    ratio as its one [[dem.clumps]] template, a rod of two equal spheres."""
     from cosim.case import load_case
     from cosim.case.calibration import rod_members
-    case, _ = load_case(case_path)
+    case, _ = load_case(case_path, list(fixed))
     names = [m.name for m in case.dem.materials]
     sand = names.index(getattr(case, case.case.kind).sand_material)
-    return [f"dem.clumps[0].members={rod_members(v)!r}" if k == "aspect_ratio" else
-            f"dem.materials[{sand}].{k}={v!r}" for k, v in parameters.items()]
+    return list(fixed) + [f"dem.clumps[0].members={rod_members(v)!r}" if k == "aspect_ratio" else
+                          f"dem.materials[{sand}].{k}={v!r}" for k, v in parameters.items()]
 
 
 def confirm(setup, parameters, out_root):
     """The best parameters on each target's confirmation case (``setup.confirm_cases``) at its
     stress: the achieved value per target, None for a target without one."""
-    evaluate = LabEvaluator(out_root)
+    evaluate = LabEvaluator(out_root, setup.spec.set)
     return [None if c is None else float(quantity_of(evaluate(parameters, c, t.normal_stress, "best"), t.quantity))
             for c, t in zip(setup.confirm_cases, setup.spec.targets, strict=True)]
 
@@ -357,7 +358,7 @@ def run_calibration(calibration_path, out_root, confirm_runs=True):
     from cosim.case.calibration import load_calibration
     setup = load_calibration(calibration_path)
     out_root = Path(out_root)
-    outcome = calibrate(setup.spec, LabEvaluator(out_root / "search"), out_root / "evaluations.csv",
+    outcome = calibrate(setup.spec, LabEvaluator(out_root / "search", setup.spec.set), out_root / "evaluations.csv",
                         cases=setup.cases)
     say(f"[calibrate] {outcome.status}: {outcome.message}")
     best = outcome.best
@@ -375,8 +376,8 @@ def run_calibration(calibration_path, out_root, confirm_runs=True):
                     + "\n".join(f"  {k} = {v!r}" for k, v in best.parameters.items())
                     + f"\nfrom {Path(case_path).resolve()}")
             written.append(out_root / ("calibrated.toml" if n == 0 else f"calibrated_{Path(case_path).stem}.toml"))
-            atomic_write_text(written[-1], calibrated_case_text(case_path, overrides(case_path, best.parameters),
-                                                                 note))
+            atomic_write_text(written[-1], calibrated_case_text(
+                case_path, overrides(case_path, best.parameters, setup.spec.set), note))
     report = write_report(out_root, setup, outcome, confirmed, [str(w) for w in written])
     say((out_root / "report.md").read_text())
     say(f"[calibrate] outputs: {out_root} (best misfit {report['misfit']:.3g})")

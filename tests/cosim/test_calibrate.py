@@ -130,25 +130,21 @@ def test_dense_and_loose_targets_over_three_stresses_find_friction_and_shape(tmp
     assert "peak_friction_angle_deg@loose@200kPa" in header and "peak_friction_angle_deg@dense@50kPa" in header
 
 
-def test_the_aspect_ratio_is_a_rod_of_two_spheres_of_that_length_over_width(tmp_path):
-    """overrides() writes the case's one template as two equal spheres whose union is A times
-    as long as it is wide, and the sand's friction into the sand material."""
+def test_the_aspect_ratio_is_a_rod_of_two_spheres_of_that_length_over_width():
+    """overrides() writes the file's fixed overrides (here: the sphere case's grains made
+    clumps), then the case's one template as two equal spheres whose union is A times as long
+    as it is wide, and the sand's friction into the sand material."""
     from cosim.case import load_case
     from cosim.case.validation import clump_templates
     from cosim.lab.calibrate import overrides
-    case_path = tmp_path / "rods.toml"
-    case_path.write_text((RUNS / "direct_shear_small.toml").read_text().replace("[specimen]", ROD_SPECIMEN)
-                         + ROD_TEMPLATE)
+    case_path = RUNS / "direct_shear_small.toml"
+    fixed = ['specimen.grains = "clumps"', "dem.clumps = [{members = [[0, 0, 0, 1]]}]"]
     for aspect in (1.0, 1.3, 2.0):
-        case, _ = load_case(case_path, overrides(case_path, {"aspect_ratio": aspect, "friction": 0.7}))
+        case, _ = load_case(case_path, overrides(case_path, {"aspect_ratio": aspect, "friction": 0.7}, fixed))
         template, = clump_templates(case_path, case.dem)
         ends = template.centres[:, 0] + template.radii * np.array([-1.0, 1.0])
         assert np.ptp(ends) / (2.0 * template.radii.max()) == pytest.approx(aspect, rel=1e-12)
-        assert case.dem.materials[0].friction == 0.7
-
-
-ROD_SPECIMEN = '[specimen]\ngrains = "clumps"'
-ROD_TEMPLATE = "\n[[dem.clumps]]\nmembers = [[-0.5, 0, 0, 1], [0.5, 0, 0, 1]]\n"
+        assert case.specimen.grains == "clumps" and case.dem.materials[0].friction == 0.7
 
 
 def test_the_budget_ends_the_search(tmp_path):
@@ -194,8 +190,9 @@ def test_bad_calibration_files_get_one_clear_message(tmp_path, capsys, body, key
     assert not (tmp_path / "out").exists()
 
 
-def test_the_shipped_calibration_file_checks():
-    assert main(["check", str(RUNS / "calibrate_thesis.toml")]) == 0
+@pytest.mark.parametrize("name", ["calibrate_thesis.toml", "calibrate_thesis_clumps.toml"])
+def test_the_shipped_calibration_files_check(name):
+    assert main(["check", str(RUNS / name)]) == 0
 
 
 CALIBRATION = """
