@@ -72,7 +72,10 @@ class Model:
 
     def support_force(self):
         """Σ of the forces (N) the grains exerted on every wall and facet mesh (the interface's
-        from its last FE step's impulse) over the last step; the same on every rank."""
+        from its last FE step's impulse) over the last step; the same on every rank
+        (collective: a model with an FE part does not total its plane walls' forces every
+        window, so they are totalled here)."""
+        self.engine.update_wall_forces()
         total = sum((w.force for w in self.engine.walls), np.zeros(3))
         for mesh in self.engine.facets:
             total = total + (self.interface_force() if self.interface is not None and mesh is self.interface.facets
