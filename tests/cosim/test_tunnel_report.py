@@ -39,3 +39,21 @@ def test_polar_plots_of_a_half_ring_and_a_whole_one(tmp_path):
                 "whole": (whole, -5.0 + 0 * whole, 0.02 * np.sin(np.radians(whole)))},
                tmp_path / "polar.png", "test")
     assert (tmp_path / "polar.png").stat().st_size > 10_000
+
+
+def test_the_troughs_grains_are_the_top_layer_even_when_it_settled_below_the_surface(tmp_path):
+    """write_trough takes the grains within a largest grain's diameter of the ground surface;
+    grains that settled further below it (a fill under its weight at full size) are measured
+    from the highest grain's centre instead, so the trough is never left without grains."""
+    from types import SimpleNamespace
+
+    from cosim.apps.embedded_report import write_trough
+    surface = np.array([[[0.0, 0.0, 0.1], [1.0, 0.0, 0.1], [0.0, 1.0, 0.1]]])
+    radius = np.full(4, 0.001)
+    for top, kept in ((0.099, [0.099, 0.0985]), (0.09, [0.09, 0.0895])):  # at the surface; 10 mm below it
+        start = np.array([[0.1, 0.0, top], [0.2, 0.0, top - 0.0005], [0.3, 0.0, top - 0.0025], [0.4, 0.0, 0.05]])
+        end = SimpleNamespace(pos=start - [0.0, 0.0, 1e-4], radius=radius)
+        write_trough(surface, (0.0, 0.0, -9.81), tmp_path / "trough.csv", grains=(start, end))
+        rows = np.genfromtxt(tmp_path / "trough.csv", delimiter=",", names=True, dtype=None, encoding=None)
+        assert np.allclose(start[np.isin(start[:, 0], rows["x"]), 2], kept)
+        assert np.allclose(rows["settlement"], 1e-4)
