@@ -60,9 +60,10 @@ def write_trough(triangles, gravity, path, fe_motion=None, grains=None):
     nodes that are vertices of the ground surface's ``triangles`` (``fe_motion``: the nodes'
     coordinates and displacement; source "fe"), and of the grains of the top layer under it,
     their centre within a largest grain's diameter of the surface's highest point at the
-    loading's start, or of the highest grain's centre where the grains settled below that band
-    (a fill under its weight at full size) (``grains``: their positions then and the particles
-    at the end; source "dem"), by their position x, y (rank 0)."""
+    loading's start, or, where the grains alone make the ground (no ``fe_motion``: the all-DEM
+    twin) and settled below that band (a fill under its weight at full size), of the highest
+    grain's centre (``grains``: their positions then and the particles at the end; source
+    "dem"), by their position x, y (rank 0)."""
     down = np.asarray(gravity, float) / np.linalg.norm(gravity)
     rows = []
     if fe_motion is not None:
@@ -74,7 +75,7 @@ def write_trough(triangles, gravity, path, fe_motion=None, grains=None):
         start, end = grains
         height, band = -start @ down, 2.0 * float(end.radius.max())
         top = float((-triangles.reshape(-1, 3) @ down).max())
-        if not np.any(height > top - band):  # the grains settled below the surface by more than the band
+        if fe_motion is None and not np.any(height > top - band):  # grains alone, settled below the band
             top = float(height.max())
         layer = height > top - band
         moved = (end.pos - start)[layer] @ down

@@ -43,8 +43,9 @@ def test_polar_plots_of_a_half_ring_and_a_whole_one(tmp_path):
 
 def test_the_troughs_grains_are_the_top_layer_even_when_it_settled_below_the_surface(tmp_path):
     """write_trough takes the grains within a largest grain's diameter of the ground surface;
-    grains that settled further below it (a fill under its weight at full size) are measured
-    from the highest grain's centre instead, so the trough is never left without grains."""
+    where grains alone make the ground (the all-DEM twin) and settled further below it (a fill
+    under its weight at full size), from the highest grain's centre instead; under FE ground
+    (a closed ring) none."""
     from types import SimpleNamespace
 
     from cosim.apps.embedded_report import write_trough
@@ -57,3 +58,7 @@ def test_the_troughs_grains_are_the_top_layer_even_when_it_settled_below_the_sur
         rows = np.genfromtxt(tmp_path / "trough.csv", delimiter=",", names=True, dtype=None, encoding=None)
         assert np.allclose(start[np.isin(start[:, 0], rows["x"]), 2], kept)
         assert np.allclose(rows["settlement"], 1e-4)
+    fe = (surface[0], np.zeros((3, 3)))  # the FE ground's nodes: the grains 10 mm below are not its surface
+    write_trough(surface, (0.0, 0.0, -9.81), tmp_path / "trough.csv", fe_motion=fe, grains=(start, end))
+    rows = np.genfromtxt(tmp_path / "trough.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert set(rows["source"]) == {"fe"}
