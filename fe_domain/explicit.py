@@ -391,6 +391,40 @@ class ExplicitSolid:
         vector = dolfinx.la.vector(self.Q.dofmap.index_map, bs)
         return vector, dolfinx.cpp.la.petsc.create_vector_wrap(vector)
 
+    def refine_critical_step(self, tolerance: float = 1e-9, max_iterations: int = 3000) -> float:
+        """Replace the cell estimate of :attr:`dt_critical` by the step's own limit and return it
+        (displacement formulation; collective). The lumped-mass central-difference step is stable
+        for Δt ≤ 2/ω_max (Belytschko, Liu & Moran, *Nonlinear Finite Elements*, 2000, §6.3), ω_max²
+        the largest eigenvalue of M⁻¹K. It is found by power iteration on the symmetric
+        M^-½ K M^-½ with its Rayleigh quotient, which rises to ω_max² from below, until it changes
+        by less than ``tolerance`` (relative); the time step's safety factor covers what is left.
+        The supports are not imposed (the unconstrained K has the larger ω_max: on the safe side),
+        the start vector is a function of the node coordinates (any partition starts alike).
+        The cell estimate min h_e/c_p can lie on either side of 2/ω_max (a lone sliver's limit is
+        half its estimate; the tunnel's mesh allows 1.28× its estimate)."""
+        if self.mixed:
+            raise ValueError("refine_critical_step: the exact limit is the displacement formulation's; the mixed "
+                             "form's explicit pressure update has its own (module docstring)")
+        stiffness = self._stiffness
+        x, y, scaled = stiffness.createVecRight(), stiffness.createVecLeft(), stiffness.createVecRight()
+        owned = self.node_coordinates[:self.n_owned_nodes]
+        x.array[:] = np.cos(owned @ np.array([[1.0e3, 7.3e3, 3.1e3], [5.7e3, 2.3e3, 8.9e3], [4.1e3, 6.7e3, 1.9e3]])
+                            + np.array([0.3, 1.1, 2.9])).ravel()
+        x.normalize()
+        inverse_root_mass = 1.0 / np.sqrt(self.mass[:3 * self.n_owned_nodes])
+        rayleigh = 0.0
+        for _ in range(max_iterations):
+            scaled.array[:] = x.array * inverse_root_mass
+            stiffness.mult(scaled, y)
+            y.array[:] *= inverse_root_mass
+            previous, rayleigh = rayleigh, y.dot(x)
+            y.copy(x)
+            x.normalize()
+            if abs(rayleigh - previous) <= tolerance * rayleigh:
+                break
+        self.dt_critical = 2.0 / float(np.sqrt(rayleigh))
+        return self.dt_critical
+
     def operators(self) -> dict[str, PETSc.Mat]:
         """The assembled step operators by name (K_dev or K, and Bᵀ, P, L for the mixed form)."""
         if not self.mixed:

@@ -123,6 +123,7 @@ def prepare(case, case_path, out_dir, resume):
     check_replicas(solid)
     material = [m.name for m in case.dem.materials].index(case.coupling.material)
     interface = Interface(solid, case.coupling.interface, material, case.coupling.smoothing_time)
+    fe_step = fe_stable_step(case.time, solid)
     distributed = comm if comm.size > 1 else None
     if resume:
         state = fe_app.restore_checkpoint(solid, case_path, out_dir, FE_CHECKPOINT_STEM)
@@ -140,8 +141,7 @@ def prepare(case, case_path, out_dir, resume):
         return {"solid": solid, "interface": interface, "engine": engine, "subcycles": n_sub}
     built = comm.bcast(on_root(comm, lambda: dem_app.read_inputs(case, case_path)), root=0)
     engine = dem_app.build_engine(case_path, case, built, extra_facets=[interface.facets], comm=distributed)
-    fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical,
-                                      case.coupling.subcycles)
+    fe_dt, dem_dt, n_sub = time_steps(engine.dt, fe_step, case.coupling.subcycles)
     solid.dt = fe_dt
     engine.dt = dem_dt
     dem_app.check_steps(case_path, case.time, fe_dt)
@@ -171,6 +171,16 @@ def stage_checkpoint(out_dir, solid, engine, interface):
         fe_app.write_checkpoint(solid, staged(fe_checkpoint), extra={"interface_held": interface.held_before})
         finals.append(fe_checkpoint)
     return finals
+
+
+def fe_stable_step(time, solid):
+    """The FE's largest step (s): ``time.fe_safety_factor`` × its exact limit 2/ω_max where the
+    case gives that factor (:meth:`fe_domain.explicit.ExplicitSolid.refine_critical_step`, which
+    also makes the solid accept steps up to that limit: call it before restoring a checkpoint),
+    else ``time.safety_factor`` × the cell estimate min h/c_p (docs/design.md §4.6). Collective."""
+    if time.fe_safety_factor is None:
+        return time.safety_factor * solid.dt_critical
+    return time.fe_safety_factor * solid.refine_critical_step()
 
 
 def time_steps(dem_dt, fe_dt_stable, subcycles=None):

@@ -295,7 +295,7 @@ def build_model(case, built, grains, ramp):
     are no plane, the interface last; plane walls for the DEM walls that are
     (:func:`planar_walls`)) and the FE volumes with the interface; collective. Returns
     (soil_model.Model, rigid FacetMeshes)."""
-    from cosim.apps.coupled import check_replicas, time_steps
+    from cosim.apps.coupled import check_replicas, fe_stable_step, time_steps
     from cosim.interface import Interface
     from cosim.soil_model import Model
     from de_domain import Engine
@@ -329,7 +329,7 @@ def build_model(case, built, grains, ramp):
     check_replicas(solid)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
     engine = Engine(particles, mats, walls=planes, facets=bodies + walls + [interface.facets], **engine_args)
-    fe_dt, dem_dt, n_sub = time_steps(engine.dt, case.time.safety_factor * solid.dt_critical, em.subcycles)
+    fe_dt, dem_dt, n_sub = time_steps(engine.dt, fe_stable_step(case.time, solid), em.subcycles)
     solid.dt, engine.dt = fe_dt, dem_dt
     return Model(engine, solid, interface, n_sub, bulk), bodies
 
@@ -420,6 +420,7 @@ def resumed_model(case, case_path, out_dir, built, state, ramp):
     """The model at the last checkpoint of the loading (DEM engine with its rigid bodies, walls
     and interface facets; the FE volumes on the prepared mesh with their state); collective.
     Returns (soil_model.Model, rigid FacetMeshes)."""
+    from cosim.apps.coupled import fe_stable_step
     from cosim.interface import Interface
     from cosim.soil_model import Model, checkpointed_engine, restore_fe
     em, split = case.embedded, built["split"]
@@ -430,6 +431,7 @@ def resumed_model(case, case_path, out_dir, built, state, ramp):
     _, ids = grain_materials(case)
     solid = build_fe(case, split, Roles.of(em), state["soil_density"], ramp)
     interface = Interface(solid, ["fe_dem_interface"], ids[em.interface_material])
+    fe_stable_step(case.time, solid)  # the solid's limit as the run had it, before its step is restored
     restore_fe(solid, interface, engine, case_path, out_dir)
     return Model(engine, solid, interface, int(round(solid.dt / engine.dt)),
                  state["soil_density"]), bodies

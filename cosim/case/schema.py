@@ -42,6 +42,11 @@ class TimeSection(Section):
     steps: Optional[int] = Field(default=None, gt=0, description="number of time steps [-] (give duration or steps)")
     dt: Optional[float] = Field(default=None, gt=0, description="time step [s]; default safety_factor x critical step")
     safety_factor: float = Field(default=0.3, gt=0, le=0.5, description="fraction of the critical time step [-]")
+    fe_safety_factor: Optional[float] = Field(
+        default=None, gt=0, le=0.9,
+        description="the FE's step as a fraction of its exact limit 2/omega_max (power iteration on M^-1 K; kinds "
+                    "coupled and embedded, displacement formulation); unset: safety_factor x the cell estimate "
+                    "min h/c_p, which a thin stiff structure's cells can make the run's step [-]")
 
 
 class OutputSection(Section):

@@ -25,6 +25,12 @@ _UNUSED = [
      "zone.subcycles DEM steps per FE step), the same for both models"),
     ("time", ("dt",), lambda c, s: c.case.kind == "embedded",
      "an embedded run takes dt = time.safety_factor x the critical step of the DEM and the FE"),
+    ("time", ("fe_safety_factor",), lambda c, s: c.case.kind not in ("coupled", "embedded"),
+     "fe_safety_factor sets the explicit FE's step beside the grains (kinds coupled and embedded)"),
+    ("time", ("fe_safety_factor",),
+     lambda c, s: getattr(c.fe if c.case.kind == "coupled" else c.embedded, "formulation", None) == "mixed",
+     "the exact limit 2/omega_max is the displacement formulation's (the mixed form's explicit pressure update has "
+     "its own); set formulation = 'displacement' or use time.safety_factor"),
     ("output", ("interval",), lambda c, s: c.case.kind == "embedded",
      "an embedded run writes embedded.rows CSV rows over the loading; set rows instead"),
     ("embedded", ("mesh_size", "parameters"), lambda c, s: s.mesh.endswith(".msh"), "a .msh file is already meshed"),

@@ -322,6 +322,12 @@ CORPUS = [
         files={"specimen.npz": npz(positions=np.array([[0.01, np.nan, 0.01]]), radii=np.full(1, 1e-3))}),
     # ---------------------------------------------------------------- coupled
     Bad("coupled", "not used here", sets=["time.dt=1e-6"], label="time.dt in a coupled case"),
+    Bad("coupled", "the exact limit 2/omega_max is the displacement formulation's",
+        sets=["time.fe_safety_factor=0.8"], label="the FE's exact step with the mixed formulation"),
+    Bad("embedded", "less than or equal to 0.9", sets=["time.fe_safety_factor=0.95"],
+        label="an FE safety factor above 0.9"),
+    Bad("dem", "sets the explicit FE's step beside the grains", sets=["time.fe_safety_factor=0.8"],
+        label="an FE safety factor without an FE"),
     Bad("coupled", "output.checkpoint_interval", sets=["output.checkpoint_interval=0.0"]),
     Bad("coupled", "not a surface physical group", sets=['coupling.interface=["nowhere"]']),
     Bad("coupled", "must be one of the materials", sets=['coupling.material="steel"']),
