@@ -624,7 +624,8 @@ def simulate(prepared):
         model, bodies = build_model(case, prepared.built, grains, ramp)
         clock["build_s"] = time.perf_counter() - t0
         say(f"[{name}] {fill_info['grains']} grains, DEM dt = {model.engine.dt:.3e} s"
-            + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step), "
+            + (f", FE dt = {model.solid.dt:.3e} s ({model.subcycles} DEM steps per FE step; the FE's limit "
+               f"{model.solid.dt_critical:.3e} s), "
                f"{len(model.interface.facets.triangles)} interface facets" if model.solid is not None else ""))
         t0 = time.perf_counter()
         rest = come_to_rest(model, out_dir, name, em.rest_unbalanced_force, em.max_rest_time)

@@ -26,7 +26,8 @@ def summary_of(prepared, outcome):
                "wall_clock_s": {**clock, "total_s": total, "compilation_s": outcome.compiling,
                                 "total_without_compilation_s": total - outcome.compiling}}
     if model.solid is not None:
-        summary.update({"fe_dt_s": model.solid.dt, "subcycles": model.subcycles, "fe_cells": state["fe_cells"],
+        summary.update({"fe_dt_s": model.solid.dt, "fe_dt_critical_s": model.solid.dt_critical,
+                        "subcycles": model.subcycles, "fe_cells": state["fe_cells"],
                         "interface_facets": len(model.interface.facets.triangles)})
     return summary
 
@@ -60,10 +61,10 @@ def write_trough(triangles, gravity, path, fe_motion=None, grains=None):
     nodes that are vertices of the ground surface's ``triangles`` (``fe_motion``: the nodes'
     coordinates and displacement; source "fe"), and of the grains of the top layer under it,
     their centre within a largest grain's diameter of the surface's highest point at the
-    loading's start, or, where the grains alone make the ground (no ``fe_motion``: the all-DEM
-    twin) and settled below that band (a fill under its weight at full size), of the highest
-    grain's centre (``grains``: their positions then and the particles at the end; source
-    "dem"), by their position x, y (rank 0)."""
+    loading's start, or, where the grains alone make the ground (no FE node on the surface: the
+    all-DEM twin, whose FE may be a lining) and settled below that band (a fill under its weight
+    at full size), of the highest grain's centre (``grains``: their positions then and the
+    particles at the end; source "dem"), by their position x, y (rank 0)."""
     down = np.asarray(gravity, float) / np.linalg.norm(gravity)
     rows = []
     if fe_motion is not None:
@@ -75,7 +76,7 @@ def write_trough(triangles, gravity, path, fe_motion=None, grains=None):
         start, end = grains
         height, band = -start @ down, 2.0 * float(end.radius.max())
         top = float((-triangles.reshape(-1, 3) @ down).max())
-        if fe_motion is None and not np.any(height > top - band):  # grains alone, settled below the band
+        if not rows and not np.any(height > top - band):  # grains alone, settled below the band
             top = float(height.max())
         layer = height > top - band
         moved = (end.pos - start)[layer] @ down

@@ -45,7 +45,7 @@ def test_the_troughs_grains_are_the_top_layer_even_when_it_settled_below_the_sur
     """write_trough takes the grains within a largest grain's diameter of the ground surface;
     where grains alone make the ground (the all-DEM twin) and settled further below it (a fill
     under its weight at full size), from the highest grain's centre instead; under FE ground
-    (a closed ring) none."""
+    (a closed ring) none; an FE lining off the surface (the all-DEM twin's) is no FE ground."""
     from types import SimpleNamespace
 
     from cosim.apps.embedded_report import write_trough
@@ -62,3 +62,7 @@ def test_the_troughs_grains_are_the_top_layer_even_when_it_settled_below_the_sur
     write_trough(surface, (0.0, 0.0, -9.81), tmp_path / "trough.csv", fe_motion=fe, grains=(start, end))
     rows = np.genfromtxt(tmp_path / "trough.csv", delimiter=",", names=True, dtype=None, encoding=None)
     assert set(rows["source"]) == {"fe"}
+    lining = (np.array([[0.5, 0.5, 0.05]]), np.zeros((1, 3)))  # an FE node, not on the ground surface
+    write_trough(surface, (0.0, 0.0, -9.81), tmp_path / "trough.csv", fe_motion=lining, grains=(start, end))
+    rows = np.genfromtxt(tmp_path / "trough.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    assert set(rows["source"]) == {"dem"} and np.allclose(np.sort(rows["x"]), [0.1, 0.2])
