@@ -295,3 +295,24 @@ def test_the_shipped_subcycling_case_gives_the_same_answer_with_1_and_20_substep
         assert np.interp(t_end, s20["time"], s20[key]) == pytest.approx(expected, rel=1e-2), key
     for s in (s1, s20, auto):
         assert np.abs(s["momentum_total_z"] - s["momentum_total_z"][0]).max() < 1e-12 * p0
+
+
+def test_the_fe_safety_factor_steps_the_fe_at_its_fraction_of_the_exact_limit(tmp_path):
+    """time.fe_safety_factor = 0.8 in a coupled run (the soft plate in the displacement form):
+    the FE's step is 0.8 × 2/ω_max of the plate (ExplicitSolid.refine_critical_step on the same
+    mesh), n DEM steps to it, and the grains still hand the plate their momentum."""
+    from mpi4py import MPI
+
+    from cosim.apps import fe as fe_app
+    from cosim.case import load_case
+    case = ROOT / "runs" / "coupled_soft_plate_subcycling.toml"
+    sets = ['fe.formulation="displacement"', "time.fe_safety_factor=0.8", "time.duration=0.004"]
+    series, out = run(case, tmp_path / "exact", *[a for s in sets for a in ("--set", s)])
+    solid = fe_app.build_solid(load_case(case, sets)[0], case, MPI.COMM_SELF)
+    limit = solid.refine_critical_step()
+    fe_dt = float(out.split("FE dt = ")[1].split(" s")[0])
+    n = int(out.split(" DEM steps per FE step")[0].rsplit("(", 1)[1])
+    dem_dt = float(out.split("DEM dt = ")[1].split(" s")[0])
+    assert fe_dt <= 0.8 * limit * (1 + 1e-3) and fe_dt == pytest.approx(n * dem_dt, rel=1e-3)  # printed to 4 digits
+    assert (n + 1) * dem_dt > 0.8 * limit                 # as many DEM steps as the limit allows
+    assert series["momentum_fe_z"][-1] > 0.0
